@@ -1,0 +1,92 @@
+"""The dataset manifest: one record per image (the contract between data_gen and everything else).
+
+``<root>/manifest.json`` holds ``{"format": FORMAT, "meta": {...}, "records": [...]}``. Every
+path is relative to ``<root>``. Loaders take everything from the records; nothing is parsed out of
+file names.
+
+Roles:
+  * ``reference`` -- the converged image of a (scene, variant); its ``reference`` is itself.
+  * ``test``      -- a noisy image on the spp ladder; ``twin`` names its independent twin.
+  * ``twin``      -- the same algorithm and spp with another seed; ``twin`` names the test image.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from pathlib import Path
+
+from nriqa.atomic import write_text_atomic
+
+FORMAT = "nriqa-dataset/1"
+MANIFEST_NAME = "manifest.json"
+ROLES = ("reference", "test", "twin")
+
+
+class ManifestError(ValueError):
+    """A missing or malformed manifest; the message says which file and what to do."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Record:
+    """One image of the dataset."""
+
+    id: str
+    scene: str
+    variant: int
+    algorithm: str
+    role: str
+    spp: int
+    seed: int
+    path: str
+    reference: str
+    width: int
+    height: int
+    render_seconds: float
+    backend: str
+    twin: str | None = None
+    nonfinite: int = 0
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+_FIELDS = {f.name for f in dataclasses.fields(Record)}
+_REQUIRED = {f.name for f in dataclasses.fields(Record) if f.default is dataclasses.MISSING}
+
+
+def write_manifest(root: str | os.PathLike, records: list[Record], meta: dict | None = None) -> Path:
+    """Write ``<root>/manifest.json`` atomically; records sorted by id for stable diffs."""
+    path = Path(root) / MANIFEST_NAME
+    body = {"format": FORMAT, "meta": meta or {}, "records": [r.to_dict() for r in sorted(records, key=lambda r: r.id)]}
+    write_text_atomic(path, json.dumps(body, indent=1) + "\n")
+    return path
+
+
+def read_manifest(root: str | os.PathLike) -> tuple[list[Record], dict]:
+    """Read and validate ``<root>/manifest.json``; return ``(records, meta)``."""
+    path = Path(root) / MANIFEST_NAME
+    if not path.is_file():
+        raise ManifestError(f"{path}: no manifest; render a dataset first (python -m data_gen out={root})")
+    try:
+        body = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ManifestError(f"{path}: unreadable manifest ({exc}); delete it and rerun data_gen to rebuild it") from None
+    if not isinstance(body, dict) or body.get("format") != FORMAT:
+        raise ManifestError(f"{path}: not an {FORMAT} manifest; rerun data_gen to rebuild it")
+    records = []
+    for i, raw in enumerate(body.get("records", [])):
+        missing = _REQUIRED - set(raw)
+        if missing:
+            raise ManifestError(f"{path}: record {i} lacks {sorted(missing)}; rerun data_gen to rebuild it")
+        rec = Record(**{k: v for k, v in raw.items() if k in _FIELDS})
+        if rec.role not in ROLES:
+            raise ManifestError(f"{path}: record {rec.id} has unknown role {rec.role!r}")
+        records.append(rec)
+    return records, body.get("meta", {})
+
+
+def scenes_of(records: list[Record]) -> list[str]:
+    """Scene families present, sorted (the fold units)."""
+    return sorted({r.scene for r in records})
