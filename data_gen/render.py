@@ -1,0 +1,121 @@
+"""Render one job's images in a worker process; each image is written atomically, then its record.
+
+An image counts as done when its record (``<image>.json``) exists; the record is written after the
+EXR, so a run killed at any point and rerun redoes at most the images that were in flight.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from data_gen.algorithms import get_algorithm
+from data_gen.plan import ImageTask, Job
+from data_gen.scenes import get_scene
+from nriqa.atomic import write_text_atomic
+from nriqa.exr import write_exr
+from nriqa.manifest import Record
+
+log = logging.getLogger(__name__)
+
+# Largest wavefront (pixels x samples in one pass) the LLVM backend gets; bounds its memory.
+MAX_WAVEFRONT = 1 << 22
+
+
+def record_path(root: Path, task: ImageTask) -> Path:
+    return root / (task.path + ".json")
+
+
+def load_record(root: Path, task: ImageTask) -> Record | None:
+    """The finished record of ``task``, or ``None`` if it has not been rendered completely."""
+    rec_path = record_path(root, task)
+    if not rec_path.is_file() or not (root / task.path).is_file():
+        return None
+    try:
+        return Record(**json.loads(rec_path.read_text(encoding="utf-8")))
+    except (ValueError, TypeError):
+        return None
+
+
+def samples_per_pass(spp: int, pixels: int) -> int:
+    """The largest power-of-two divisor of ``spp`` that keeps a pass within ``MAX_WAVEFRONT``."""
+    per_pass = spp
+    while per_pass > 1 and per_pass * pixels > MAX_WAVEFRONT and per_pass % 2 == 0:
+        per_pass //= 2
+    return per_pass
+
+
+def scene_dict(job: Job, task: ImageTask) -> dict:
+    """The full Mitsuba scene of one image: the variant's scene plus film, sampler, integrator."""
+    spec = get_scene(job.scene)
+    alg = get_algorithm(job.algorithm)
+    scene = spec.build(np.random.default_rng(job.variant_seed))
+    width, height = job.resolution
+    # A box filter keeps each pixel's noise independent of its neighbours'.
+    scene["sensor"]["film"] = {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}}
+    scene["sensor"]["sampler"] = alg.sampler_dict(task.spp)
+    per_pass = samples_per_pass(task.spp, width * height) if not alg.square_spp else None
+    scene["integrator"] = alg.integrator_dict(job.max_depth, per_pass)
+    return scene
+
+
+def sanitize(image: np.ndarray) -> tuple[np.ndarray, int]:
+    """Replace NaN/Inf samples by 0; return the image and how many pixels had any."""
+    bad = ~np.isfinite(image)
+    count = int(bad.any(axis=2).sum())
+    if count:
+        image = np.where(bad, np.float32(0), image)
+    return image, count
+
+
+def render_task(root: Path, job: Job, task: ImageTask, backend: str) -> Record:
+    """Render, sanitise and write one image and its record; return the record."""
+    import mitsuba as mi
+
+    scene = mi.load_dict(scene_dict(job, task))
+    actual = scene.sensors()[0].sampler().sample_count()
+    if actual != task.spp:
+        raise RuntimeError(f"{task.id}: sampler {job.algorithm} renders {actual} spp, not {task.spp}")
+    start = time.perf_counter()
+    image = np.array(mi.render(scene, seed=task.seed), dtype=np.float32)
+    seconds = time.perf_counter() - start
+    image, nonfinite = sanitize(image)
+    if nonfinite:
+        log.warning("%s: %d non-finite pixels from the renderer, written as 0 and counted in the manifest", task.id, nonfinite)
+    write_exr(root / task.path, image)
+    rec = Record(
+        id=task.id,
+        scene=job.scene,
+        variant=job.variant,
+        algorithm=job.algorithm,
+        role=task.role,
+        spp=task.spp,
+        seed=task.seed,
+        path=task.path,
+        reference=task.reference,
+        width=image.shape[1],
+        height=image.shape[0],
+        render_seconds=round(seconds, 4),
+        backend=backend,
+        twin=task.twin,
+        nonfinite=nonfinite,
+    )
+    write_text_atomic(record_path(root, task), json.dumps(rec.to_dict()) + "\n")
+    return rec
+
+
+def run_job(root: str, job: Job, backend: str) -> tuple[int, int]:
+    """Render the unfinished images of ``job`` under ``root``; return ``(rendered, skipped)``."""
+    root_path = Path(root)
+    rendered = skipped = 0
+    for task in job.tasks:
+        if load_record(root_path, task) is not None:
+            skipped += 1
+            continue
+        render_task(root_path, job, task, backend)
+        rendered += 1
+    return rendered, skipped

@@ -1,0 +1,140 @@
+"""Building blocks shared by the scene modules: cameras, shapes, materials, generated textures.
+
+Everything is made in code (no downloaded assets). Functions take the variant's
+``numpy.random.Generator`` where they vary.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _t():
+    import mitsuba as mi
+
+    return mi.ScalarTransform4f()
+
+
+def camera(origin, target, fov: float, up=(0, 1, 0)) -> dict:
+    """A perspective sensor looking from ``origin`` at ``target`` (film and sampler added later)."""
+    return {
+        "type": "perspective",
+        "fov": float(fov),
+        "to_world": _t().look_at(origin=list(map(float, origin)), target=list(map(float, target)), up=list(up)),
+    }
+
+
+def jitter(rng: np.random.Generator, base, scale) -> list[float]:
+    """``base`` plus a uniform offset in ``[-scale, scale]`` per coordinate."""
+    base = np.asarray(base, dtype=float)
+    return (base + rng.uniform(-1, 1, base.shape) * np.asarray(scale, dtype=float)).tolist()
+
+
+def rgb(value) -> dict:
+    return {"type": "rgb", "value": [float(v) for v in value]}
+
+
+def diffuse(color) -> dict:
+    """A two-sided diffuse BSDF (so walls need no care about their orientation)."""
+    return {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": rgb(color)}}
+
+
+def textured(texture: dict) -> dict:
+    """A two-sided diffuse BSDF whose reflectance is ``texture``."""
+    return {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": texture}}
+
+
+PATH_FAMILY = ("path_independent", "path_multijitter", "path_ldsampler")
+VOLPATH_FAMILY = ("volpath_independent", "volpath_multijitter", "volpath_ldsampler")
+
+
+def random_color(rng: np.random.Generator, lo: float = 0.15, hi: float = 0.85) -> list[float]:
+    return rng.uniform(lo, hi, 3).tolist()
+
+
+def rectangle(to_world, bsdf: dict | None = None, emitter: dict | None = None) -> dict:
+    shape: dict = {"type": "rectangle", "to_world": to_world}
+    if bsdf is not None:
+        shape["bsdf"] = bsdf
+    if emitter is not None:
+        shape["emitter"] = emitter
+    return shape
+
+
+def area_light(radiance) -> dict:
+    return {"type": "area", "radiance": rgb(radiance)}
+
+
+def floor(y: float, size: float, bsdf: dict) -> dict:
+    """A horizontal square facing up at height ``y``."""
+    return rectangle(_t().translate([0, y, 0]).rotate([1, 0, 0], -90).scale(size), bsdf)
+
+
+def wall(to_world, bsdf: dict) -> dict:
+    return rectangle(to_world, bsdf)
+
+
+def transform():
+    """An identity ``ScalarTransform4f`` to chain translate/rotate/scale on."""
+    return _t()
+
+
+def checkerboard(rng: np.random.Generator, scale: float) -> dict:
+    """Mitsuba's procedural checkerboard with two random colours, ``scale`` tiles per unit uv."""
+    return {
+        "type": "checkerboard",
+        "color0": rgb(random_color(rng, 0.05, 0.4)),
+        "color1": rgb(random_color(rng, 0.5, 0.9)),
+        "to_uv": _t().scale([scale, scale, 1]),
+    }
+
+
+def noise_bitmap(rng: np.random.Generator, size: int = 64, octaves: int = 4) -> dict:
+    """A bitmap texture of smooth value noise (sum of upsampled random grids), made in numpy."""
+    import mitsuba as mi
+    from scipy.ndimage import zoom
+
+    img = np.zeros((size, size, 3), dtype=np.float64)
+    for octave in range(octaves):
+        cells = 2 ** (octave + 2)
+        grid = rng.uniform(0, 1, (cells, cells, 3))
+        img += zoom(grid, (size / cells, size / cells, 1), order=1, mode="grid-wrap", grid_mode=True) / 2**octave
+    img = img / img.max()
+    tint = np.asarray(random_color(rng, 0.3, 1.0))
+    data = np.ascontiguousarray((0.05 + 0.85 * img * tint).astype(np.float32))
+    return {"type": "bitmap", "bitmap": mi.Bitmap(data), "raw": True, "filter_type": "bilinear"}
+
+
+def torus_mesh(name: str, bsdf: dict, major: float = 1.0, minor: float = 0.35, to_world=None, segments=(64, 32)):
+    """A torus triangle mesh with smooth normals, built with numpy (no asset file).
+
+    Returns a ``mitsuba.Mesh`` object, which ``mitsuba.load_dict`` accepts as a scene child.
+    """
+    import mitsuba as mi
+
+    nu, nv = segments
+    u = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    v = np.linspace(0, 2 * np.pi, nv, endpoint=False)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    pos = np.stack([(major + minor * np.cos(vv)) * np.cos(uu), minor * np.sin(vv), (major + minor * np.cos(vv)) * np.sin(uu)], -1)
+    nrm = np.stack([np.cos(vv) * np.cos(uu), np.sin(vv), np.cos(vv) * np.sin(uu)], -1)
+    i = np.arange(nu)[:, None]
+    j = np.arange(nv)[None, :]
+    a, b = i * nv + j, ((i + 1) % nu) * nv + j
+    c, d = ((i + 1) % nu) * nv + (j + 1) % nv, i * nv + (j + 1) % nv
+    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    pos, nrm = pos.reshape(-1, 3), nrm.reshape(-1, 3)
+    if to_world is not None:
+        m = np.array(to_world.matrix, dtype=np.float64)
+        pos = pos @ m[:3, :3].T + m[:3, 3]
+        nrm = nrm @ np.linalg.inv(m[:3, :3])
+        nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf)
+    mesh = mi.Mesh(name, len(pos), len(faces), props=props, has_vertex_normals=True)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = pos.astype(np.float32).ravel()
+    params["faces"] = faces.astype(np.uint32).ravel()
+    params["vertex_normals"] = nrm.astype(np.float32).ravel()
+    params.update()
+    return mesh

@@ -1,0 +1,1 @@
+"""Data: manifest dataset, folds, patch sampling, jitter, LightningDataModule."""

@@ -1,0 +1,93 @@
+"""The SSIM map: the full-reference target of experiment II and of evaluation (thesis ch. 4-5)."""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+from nriqa.tonemap import luminance
+
+WINDOW = 11
+SIGMA = 1.5
+K1 = 0.01
+K2 = 0.03
+DATA_RANGE = 1.0
+
+
+def _gaussian_1d(dtype: torch.dtype, device: torch.device) -> Tensor:
+    r = torch.arange(WINDOW, dtype=dtype, device=device) - (WINDOW - 1) / 2
+    g = torch.exp(-0.5 * (r / SIGMA) ** 2)
+    return g / g.sum()
+
+
+def _as_gray(x: Tensor, name: str) -> Tensor:
+    if not isinstance(x, Tensor):
+        raise TypeError(f"ssim_map: {name} must be a torch.Tensor, got {type(x).__name__}")
+    if not x.is_floating_point():
+        raise TypeError(f"ssim_map: {name} must be floating point, got {x.dtype}")
+    if x.ndim != 4 or x.shape[1] not in (1, 3):
+        raise ValueError(f"ssim_map: {name} must be (B, 3, H, W) RGB or (B, 1, H, W) gray, got {tuple(x.shape)}")
+    return luminance(x) if x.shape[1] == 3 else x
+
+
+def ssim_map(x: Tensor, y: Tensor) -> Tensor:
+    r"""Per-pixel SSIM of ``x`` against ``y`` on luminance (thesis ch. 4, target of experiment II).
+
+    .. math::
+        \mathrm{SSIM} = \frac{(2\mu_x\mu_y + C_1)(2\sigma_{xy} + C_2)}
+                             {(\mu_x^2 + \mu_y^2 + C_1)(\sigma_x^2 + \sigma_y^2 + C_2)},
+        \quad C_1 = (K_1 L)^2,\ C_2 = (K_2 L)^2
+
+    with local statistics from an 11x11 Gaussian window, sigma = 1.5 (separable), K1 = 0.01,
+    K2 = 0.03, L = 1, population (not sample) covariance. RGB inputs are reduced to luminance
+    L = 0.2989 R + 0.587 G + 0.114 B (eq. 4.1) first. The map is clipped to [0, 1].
+
+    Border handling: the output has the input's size; the image is extended by 5 px of reflect
+    padding (mirror without repeating the edge pixel, ``torch.nn.functional.pad(mode="reflect")``)
+    before filtering. Pixels at least 5 px from the border are unaffected by the padding and match
+    ``skimage.metrics.structural_similarity(..., gaussian_weights=True, sigma=1.5,
+    use_sample_covariance=False, data_range=1)``; skimage uses symmetric padding, so the outer
+    5 px differ slightly. Images must be at least 6x6.
+
+    Args:
+        x: ``(B, 3, H, W)`` RGB or ``(B, 1, H, W)`` gray LDR in [0, 1] (e.g. the tone-mapped render).
+        y: the reference, same shape as ``x``.
+
+    Returns:
+        ``(B, 1, H, W)`` SSIM map in [0, 1]; symmetric in ``x`` and ``y``; 1 where ``x == y``.
+
+    Examples:
+        >>> x = torch.rand(2, 3, 16, 16)
+        >>> ssim_map(x, x).shape
+        torch.Size([2, 1, 16, 16])
+    """
+    if isinstance(x, Tensor) and isinstance(y, Tensor) and x.shape != y.shape:
+        raise ValueError(f"ssim_map: x and y must have the same shape, got {tuple(x.shape)} and {tuple(y.shape)}")
+    gx, gy = _as_gray(x, "x"), _as_gray(y, "y")
+    h, w = gx.shape[-2:]
+    pad = WINDOW // 2
+    if h <= pad or w <= pad:
+        raise ValueError(f"ssim_map: images must be at least {pad + 1}x{pad + 1} pixels, got {h}x{w}")
+
+    # (Co)variances are shift-invariant; taking them about each image pair's mean avoids most of
+    # the cancellation in E[x^2] - E[x]^2, which matters in float32.
+    shift = 0.5 * (gx.mean(dim=(-2, -1), keepdim=True) + gy.mean(dim=(-2, -1), keepdim=True))
+    cx, cy = gx - shift, gy - shift
+    g = _gaussian_1d(gx.dtype, gx.device)
+    stats = torch.cat([cx, cy, cx * cx, cy * cy, cx * cy], dim=1)
+    n = stats.shape[1]
+    stats = F.pad(stats, (pad, pad, pad, pad), mode="reflect")
+    stats = F.conv2d(stats, g.view(1, 1, 1, WINDOW).expand(n, 1, 1, WINDOW), groups=n)
+    stats = F.conv2d(stats, g.view(1, 1, WINDOW, 1).expand(n, 1, WINDOW, 1), groups=n)
+    mcx, mcy, mxx, myy, mxy = stats.split(1, dim=1)
+
+    vx = mxx - mcx * mcx
+    vy = myy - mcy * mcy
+    cov = mxy - mcx * mcy
+    mx, my = mcx + shift, mcy + shift
+    c1 = (K1 * DATA_RANGE) ** 2
+    c2 = (K2 * DATA_RANGE) ** 2
+    num = (2 * mx * my + c1) * (2 * cov + c2)
+    den = (mx * mx + my * my + c1) * (vx + vy + c2)
+    return (num / den).clamp(0.0, 1.0)

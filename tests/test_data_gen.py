@@ -1,0 +1,286 @@
+"""data_gen: planning, backend fallback, rendering the tiny preset, resume after kill, convergence."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mitsuba")
+
+from data_gen import backend
+from data_gen.algorithms import ALGORITHMS, get_algorithm
+from data_gen.convergence import convergence
+from data_gen.plan import MIN_REFERENCE_FACTOR, PlanError, ladder, plan_dataset
+from data_gen.render import sanitize
+from data_gen.scenes import get_scene, list_scenes
+from nriqa.exr import read_exr
+from nriqa.manifest import read_manifest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_data_gen(*overrides: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "data_gen", *overrides], cwd=REPO, capture_output=True, text=True, timeout=timeout
+    )
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    """The tiny preset, rendered once for this module."""
+    out = tmp_path_factory.mktemp("tiny")
+    proc = run_data_gen("preset=tiny", f"out={out}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out
+
+
+# --- planning -------------------------------------------------------------------------------
+
+
+def test_at_least_eight_scene_families_each_with_a_converging_reference():
+    scenes = list_scenes()
+    assert len(scenes) >= 8
+    for name in scenes:
+        spec = get_scene(name)
+        assert spec.algorithms, name
+        assert all(a in ALGORITHMS for a in spec.algorithms)
+        assert spec.reference_algorithm.endswith("_independent")
+        assert ("volpath" in spec.reference_algorithm) == spec.medium
+
+
+def test_only_the_medium_scene_uses_the_volumetric_integrator():
+    for name in list_scenes():
+        spec = get_scene(name)
+        uses_volpath = any(get_algorithm(a).integrator == "volpath" for a in spec.algorithms)
+        assert uses_volpath == spec.medium, name
+
+
+def test_plan_ladder_twins_and_seeds():
+    jobs = plan_dataset(["cornell", "caustic"], variants=2, seed=7, resolution=(16, 16), ladder_top=8)
+    tasks = [t for j in jobs for t in j.tasks]
+    assert len({t.seed for t in tasks}) == len(tasks), "every image has its own seed"
+    assert len({t.path for t in tasks}) == len(tasks)
+    by_id = {t.id: t for t in tasks}
+    for t in tasks:
+        if t.role == "reference":
+            assert t.spp == 8 * MIN_REFERENCE_FACTOR
+            continue
+        twin = by_id[t.twin]
+        assert twin.twin == t.id and twin.spp == t.spp and twin.seed != t.seed
+        assert {t.role, twin.role} == {"test", "twin"}
+        assert t.spp in (2, 4, 8)
+    assert plan_dataset(["cornell"], variants=1, seed=7, ladder_top=8) == plan_dataset(["cornell"], variants=1, seed=7, ladder_top=8)
+
+
+def test_square_samplers_take_only_powers_of_four():
+    jobs = plan_dataset(["cornell"], variants=1, ladder_top=64)
+    spps = {j.algorithm: sorted({t.spp for t in j.tasks}) for j in jobs}
+    assert spps["path_independent"] == [2, 4, 8, 16, 32, 64]
+    assert spps["path_ldsampler"] == [4, 16, 64]
+    assert spps["path_multijitter"] == [4, 16, 64]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"scenes": ["nowhere"]}, "unknown scene 'nowhere'"),
+        ({"ladder_top": 48}, "not a power of two"),
+        ({"ladder_top": 1}, "not a power of two"),
+        ({"reference_factor": 8}, ">= 16x"),
+        ({"variants": 0}, "at least 1 variant"),
+        ({"algorithms": ["path_magic"]}, "unknown algorithm"),
+    ],
+)
+def test_plan_rejects_bad_configuration(kwargs, message):
+    args = {"scenes": ["cornell"], "variants": 1, **kwargs}
+    with pytest.raises(PlanError, match=message):
+        plan_dataset(**args)
+
+
+def test_ladder():
+    assert ladder(2) == [2]
+    assert ladder(16) == [2, 4, 8, 16]
+
+
+# --- command line errors ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("scenes=[nowhere]", "unknown scene"),
+        ("ladder_top=12", "not a power of two"),
+        ("reference_factor=4", ">= 16x"),
+    ],
+)
+def test_cli_bad_configuration_is_one_line(tmp_path, override, message):
+    proc = run_data_gen("preset=tiny", f"out={tmp_path}", override)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_cli_unwritable_out_nonroot(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    proc = run_data_gen("preset=tiny", f"out={locked / 'x'}")
+    assert proc.returncode == 2 and "not writable" in proc.stderr
+
+
+def test_cli_unwritable_out(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    proc = run_data_gen("preset=tiny", f"out={blocker / 'data'}")
+    assert proc.returncode == 2
+    assert "not writable" in proc.stderr and "Traceback" not in proc.stderr
+
+
+# --- backend ------------------------------------------------------------------------------------
+
+
+def test_backend_falls_back_to_scalar_with_one_warning(monkeypatch, caplog):
+    monkeypatch.setattr(backend, "probe_llvm", lambda: (False, "LLVM probe failed (abort)"))
+    with caplog.at_level("WARNING"):
+        assert backend.select_backend("auto") == backend.SCALAR_VARIANT
+    assert len(caplog.records) == 1 and "falling back" in caplog.text
+    with pytest.raises(RuntimeError, match="unusable"):
+        backend.select_backend(backend.LLVM_VARIANT)
+    assert backend.select_backend(backend.SCALAR_VARIANT) == backend.SCALAR_VARIANT
+    with pytest.raises(ValueError, match="unknown backend"):
+        backend.select_backend("cuda")
+
+
+def test_llvm_probe_survives_a_broken_libllvm(monkeypatch):
+    """A bad libLLVM may abort the interpreter; the probe runs in a subprocess, so we live on."""
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", "/nonexistent/libLLVM.so")
+    ok, reason = backend.probe_llvm(timeout=60)
+    assert not ok and "LLVM probe" in reason
+
+
+def test_sanitize_counts_and_zeroes_nonfinite_pixels():
+    img = np.ones((4, 5, 3), dtype=np.float32)
+    img[0, 0, 0] = np.nan
+    img[1, 2, :] = np.inf
+    img[3, 4, 2] = -np.inf
+    out, count = sanitize(img)
+    assert count == 3
+    assert np.isfinite(out).all() and out[0, 0, 0] == 0 and out[2, 2, 1] == 1
+
+
+# --- the tiny preset ----------------------------------------------------------------------------
+
+
+def test_tiny_dataset_is_complete_and_valid(tiny):
+    records, meta = read_manifest(tiny)
+    assert meta["preset"] == "tiny"
+    assert {r.scene for r in records} == set(list_scenes())
+    by_id = {r.id: r for r in records}
+    refs = {r.path: r for r in records if r.role == "reference"}
+    for r in records:
+        assert (tiny / r.path).is_file()
+        assert r.reference in refs
+        assert r.backend in (backend.LLVM_VARIANT, backend.SCALAR_VARIANT)
+        assert r.render_seconds > 0 and (r.width, r.height) == (32, 32)
+        if r.role != "reference":
+            assert by_id[r.twin].spp == r.spp and by_id[r.twin].seed != r.seed
+            assert refs[r.reference].spp >= MIN_REFERENCE_FACTOR * 16
+    assert not list(tiny.rglob("*.partial*"))
+    img = read_exr(tiny / records[0].path)
+    assert img.dtype == np.float32 and img.shape == (32, 32, 3) and np.isfinite(img).all()
+
+
+def test_rerun_skips_finished_images(tiny):
+    before = {p: p.stat().st_mtime_ns for p in tiny.rglob("*.exr")}
+    proc = run_data_gen("preset=tiny", f"out={tiny}")
+    assert proc.returncode == 0, proc.stderr
+    assert "0 jobs to do" in proc.stdout + proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in tiny.rglob("*.exr")} == before
+
+
+def _top_rung_pairs(records):
+    top = {}
+    for r in records:
+        if r.role == "test" and r.spp >= top.get((r.scene, r.algorithm), (0, None))[0]:
+            top[(r.scene, r.algorithm)] = (r.spp, r)
+    return {k: v[1] for k, v in top.items()}
+
+
+def test_every_declared_algorithm_converges_to_its_reference(tiny):
+    records, _ = read_manifest(tiny)
+    by_id = {r.id: r for r in records}
+    ref_spp = {r.path: r.spp for r in records if r.role == "reference"}
+    verdicts = {}
+    for (scene, alg), rec in _top_rung_pairs(records).items():
+        result = convergence(
+            read_exr(tiny / rec.path), read_exr(tiny / by_id[rec.twin].path), read_exr(tiny / rec.reference),
+            ref_spp[rec.reference] / rec.spp,
+        )
+        verdicts[(scene, alg)] = result
+    failing = {k: v for k, v in verdicts.items() if not v.converged}
+    assert not failing, failing
+    declared = {(s, a) for s in list_scenes() for a in get_scene(s).algorithms}
+    assert set(verdicts) == declared
+
+
+@pytest.mark.parametrize(("scene", "algorithm"), [("caustic", "ptracer_independent"), ("medium", "path_independent")])
+def test_convergence_check_rejects_a_biased_algorithm(tiny, tmp_path, scene, algorithm):
+    """Negative controls: particle tracing cannot see glass; a surface path tracer ignores fog."""
+    import pickle
+
+    from data_gen.plan import ImageTask, Job, derive_seed
+
+    out = tmp_path / "biased"
+    spec = get_scene(scene)
+    # The same variant as the tiny preset's (seed 0, variant 0), with an algorithm it does not declare.
+    tasks = tuple(ImageTask(f"x/{k}", "test", 16, 100 + k, f"x/{k}.exr", "ref.exr") for k in range(2))
+    job = Job(scene, 0, derive_seed(0, scene, 0), algorithm, (32, 32), spec.max_depth, tasks)
+    code = (
+        "import sys, pickle; from pathlib import Path\n"
+        "from data_gen.backend import init_worker, select_backend\n"
+        "v = select_backend('auto'); init_worker(v, 2)\n"
+        "from data_gen.render import run_job\n"
+        "run_job(sys.argv[2], pickle.loads(bytes.fromhex(sys.argv[1])), v)\n"
+    )
+    subprocess.run([sys.executable, "-c", code, pickle.dumps(job).hex(), str(out)], cwd=REPO, check=True, capture_output=True)
+    reference = read_exr(tiny / f"{scene}/v000/reference.exr")
+    result = convergence(read_exr(out / "x/0.exr"), read_exr(out / "x/1.exr"), reference, 16)
+    assert not result.converged, result
+
+
+def test_same_seed_same_images(tiny, tmp_path):
+    proc = run_data_gen("preset=tiny", f"out={tmp_path}", "scenes=[cornell]", "algorithms=[path_independent]", "jobs=1")
+    assert proc.returncode == 0, proc.stderr
+    records, _ = read_manifest(tmp_path)
+    for r in records:
+        np.testing.assert_array_equal(read_exr(tmp_path / r.path), read_exr(tiny / r.path))
+
+
+def test_killed_run_resumes_to_a_complete_uncorrupted_dataset(tiny, tmp_path):
+    out = tmp_path / "killed"
+    args = [sys.executable, "-m", "data_gen", "preset=tiny", f"out={out}", "scenes=[cornell,glossy]", "jobs=2"]
+    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(out.rglob("*.exr.json"))) < 5:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "manifest.json").exists(), "killed before the end: no manifest yet"
+    for exr in out.rglob("*.exr"):
+        if ".partial" not in exr.name:
+            read_exr(exr)  # every completed file is whole
+    proc = run_data_gen("preset=tiny", f"out={out}", "scenes=[cornell,glossy]")
+    assert proc.returncode == 0, proc.stderr
+    records, _ = read_manifest(out)
+    assert len(records) == len([t for j in plan_dataset(["cornell", "glossy"], 1, resolution=(32, 32), ladder_top=16) for t in j.tasks])
+    assert not list(out.rglob("*.partial*"))
+    for r in records:
+        np.testing.assert_array_equal(read_exr(out / r.path), read_exr(tiny / r.path))
