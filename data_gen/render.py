@@ -36,9 +36,13 @@ def load_record(root: Path, task: ImageTask) -> Record | None:
     if not rec_path.is_file() or not (root / task.path).is_file():
         return None
     try:
-        return Record(**json.loads(rec_path.read_text(encoding="utf-8")))
+        rec = Record(**json.loads(rec_path.read_text(encoding="utf-8")))
     except (ValueError, TypeError):
         return None
+    # A record from another plan (other seed, spp or reference) is stale: render again.
+    if (rec.seed, rec.spp, rec.role, rec.reference) != (task.seed, task.spp, task.role, task.reference):
+        return None
+    return rec
 
 
 def samples_per_pass(spp: int, pixels: int) -> int:

@@ -284,3 +284,41 @@ def test_killed_run_resumes_to_a_complete_uncorrupted_dataset(tiny, tmp_path):
     assert not list(out.rglob("*.partial*"))
     for r in records:
         np.testing.assert_array_equal(read_exr(out / r.path), read_exr(tiny / r.path))
+
+
+def test_report_writes_plots_and_numbers(tiny, tmp_path):
+    from data_gen.report import main as report_main
+
+    assert report_main([str(tiny), "--out", str(tmp_path)]) == 0
+    for scene in list_scenes():
+        assert (tmp_path / f"{scene}_error.png").stat().st_size > 1000
+        assert (tmp_path / f"{scene}_contact.png").stat().st_size > 1000
+    rows = (tmp_path / "convergence.csv").read_text().splitlines()
+    assert rows[0] == "scene,algorithm,spp,images,seconds,mse,one_minus_ssim"
+    mse = {int(line.split(",")[2]): float(line.split(",")[5]) for line in rows[1:] if line.startswith("cornell,path_independent,")}
+    assert mse[16] < mse[2], "error falls with samples"
+    assert "False" not in (tmp_path / "verdicts.csv").read_text()
+
+
+def test_report_without_manifest_is_one_line(tmp_path, capsys):
+    from data_gen.report import main as report_main
+
+    assert report_main([str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no manifest" in err[0]
+
+
+def test_stale_record_is_rendered_again(tiny, tmp_path):
+    import json
+    import shutil
+
+    out = tmp_path / "stale"
+    shutil.copytree(tiny / "cornell", out / "cornell")
+    rec_file = out / "cornell/v000/reference.exr.json"
+    body = json.loads(rec_file.read_text())
+    body["spp"] = 4096
+    rec_file.write_text(json.dumps(body))
+    proc = run_data_gen("preset=tiny", f"out={out}", "scenes=[cornell]")
+    assert proc.returncode == 0, proc.stderr
+    assert "1 jobs to do" in proc.stdout + proc.stderr
+    assert json.loads(rec_file.read_text())["spp"] == 256
