@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from data_gen.convergence import convergence  # noqa: E402
+from data_gen.convergence import dataset_verdicts  # noqa: E402
 from nriqa.atomic import atomic_path, write_text_atomic  # noqa: E402
 from nriqa.exr import read_exr  # noqa: E402
 from nriqa.manifest import ManifestError, Record, read_manifest  # noqa: E402
@@ -62,25 +62,6 @@ def error_rows(root: Path, records: list[Record]) -> list[dict]:
                 "mse": float(np.mean(mse)),
                 "one_minus_ssim": float(np.mean(dssim)),
             }
-        )
-    return rows
-
-
-def verdict_rows(root: Path, records: list[Record]) -> list[dict]:
-    """Convergence of each algorithm's top rung (test + twin) to the reference, per variant."""
-    by_id = {r.id: r for r in records}
-    ref_spp = {r.path: r.spp for r in records if r.role == "reference"}
-    top: dict[tuple, Record] = {}
-    for r in records:
-        key = (r.scene, r.variant, r.algorithm)
-        if r.role == "test" and (key not in top or r.spp > top[key].spp):
-            top[key] = r
-    rows = []
-    for (scene, variant, alg), r in sorted(top.items()):
-        c = convergence(read_exr(root / r.path), read_exr(root / by_id[r.twin].path), read_exr(root / r.reference), ref_spp[r.reference] / r.spp)
-        rows.append(
-            {"scene": scene, "variant": variant, "algorithm": alg, "spp": r.spp, "median_abs_z": round(c.median_abs_z, 3),
-             "frac_outliers": round(c.frac_outliers, 3), "relative_bias": round(c.relative_bias, 4), "converged": c.converged}
         )
     return rows
 
@@ -147,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args.out or args.data / "report"
     rows = error_rows(args.data, records)
     write_csv(out / "convergence.csv", rows)
-    verdicts = verdict_rows(args.data, records)
+    verdicts = dataset_verdicts(args.data, records)
     write_csv(out / "verdicts.csv", verdicts)
     for scene in sorted({r.scene for r in records}):
         plot_scene([r for r in rows if r["scene"] == scene], scene, out / f"{scene}_error.png")

@@ -16,7 +16,7 @@ pytest.importorskip("mitsuba")
 
 from data_gen import backend
 from data_gen.algorithms import ALGORITHMS, get_algorithm
-from data_gen.convergence import convergence
+from data_gen.convergence import convergence, dataset_verdicts, pixel_variance, top_rungs
 from data_gen.plan import MIN_REFERENCE_FACTOR, PlanError, ladder, plan_dataset
 from data_gen.render import sanitize
 from data_gen.scenes import get_scene, list_scenes
@@ -206,29 +206,13 @@ def test_rerun_skips_finished_images(tiny):
     assert {p: p.stat().st_mtime_ns for p in tiny.rglob("*.exr")} == before
 
 
-def _top_rung_pairs(records):
-    top = {}
-    for r in records:
-        if r.role == "test" and r.spp >= top.get((r.scene, r.algorithm), (0, None))[0]:
-            top[(r.scene, r.algorithm)] = (r.spp, r)
-    return {k: v[1] for k, v in top.items()}
-
-
 def test_every_declared_algorithm_converges_to_its_reference(tiny):
     records, _ = read_manifest(tiny)
-    by_id = {r.id: r for r in records}
-    ref_spp = {r.path: r.spp for r in records if r.role == "reference"}
-    verdicts = {}
-    for (scene, alg), rec in _top_rung_pairs(records).items():
-        result = convergence(
-            read_exr(tiny / rec.path), read_exr(tiny / by_id[rec.twin].path), read_exr(tiny / rec.reference),
-            ref_spp[rec.reference] / rec.spp,
-        )
-        verdicts[(scene, alg)] = result
-    failing = {k: v for k, v in verdicts.items() if not v.converged}
+    verdicts = dataset_verdicts(tiny, records)
+    failing = [v for v in verdicts if not v["converged"]]
     assert not failing, failing
     declared = {(s, a) for s in list_scenes() for a in get_scene(s).algorithms}
-    assert set(verdicts) == declared
+    assert {(v["scene"], v["algorithm"]) for v in verdicts} == declared
 
 
 @pytest.mark.parametrize(("scene", "algorithm"), [("caustic", "ptracer_independent"), ("medium", "path_independent")])
@@ -251,8 +235,11 @@ def test_convergence_check_rejects_a_biased_algorithm(tiny, tmp_path, scene, alg
         "run_job(sys.argv[2], pickle.loads(bytes.fromhex(sys.argv[1])), v)\n"
     )
     subprocess.run([sys.executable, "-c", code, pickle.dumps(job).hex(), str(out)], cwd=REPO, check=True, capture_output=True)
-    reference = read_exr(tiny / f"{scene}/v000/reference.exr")
-    result = convergence(read_exr(out / "x/0.exr"), read_exr(out / "x/1.exr"), reference, 16)
+    records, _ = read_manifest(tiny)
+    ref = next(r for r in records if r.scene == scene and r.role == "reference")
+    ind = top_rungs(records)[(scene, 0, ref.algorithm)]
+    ref_var = pixel_variance(read_exr(tiny / ind.path), read_exr(tiny / ind.path.replace("_a.exr", "_b.exr"))) * ind.spp / ref.spp
+    result = convergence(read_exr(out / "x/0.exr"), read_exr(out / "x/1.exr"), read_exr(tiny / ref.path), ref_var)
     assert not result.converged, result
 
 
