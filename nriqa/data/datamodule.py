@@ -1,0 +1,132 @@
+"""The LightningDataModule of both experiments: manifest -> fold -> tone-mapped pairs -> patches."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import lightning as L
+from torch.utils.data import DataLoader, TensorDataset
+
+from nriqa.data.folds import split_by_scene
+from nriqa.data.images import ImagePair, load_pairs
+from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
+from nriqa.data.targets import check_target
+from nriqa.manifest import read_manifest
+
+# Offsets that give training and the two fixed evaluation sets independent random streams.
+_VAL_STREAM = 1_000_003
+_TRAIN_EVAL_STREAM = 2_000_003
+
+
+class NRIQADataModule(L.LightningDataModule):
+    """Patches for NR-IQA training from a rendered dataset (thesis ch. 5).
+
+    Noisy images are the manifest's ``test`` and ``twin`` records, each paired with its reference;
+    every image is tone-mapped once (:func:`nriqa.tonemap.tonemap`) and kept in memory.
+
+    Training: ``batches_per_epoch * batch_size`` random patches per epoch from every scene but
+    ``val_scene``, jittered (flip/rot90 and HSV, eq. 5.1, each switchable) before the target is
+    computed. Validation: ``val_patches`` fixed seeded patches of ``val_scene``, never jittered.
+
+    Args:
+        data_dir: dataset root holding ``manifest.json``.
+        val_scene: scene family held out for validation; ``None`` trains on all, no validation.
+        patch_size: 32 for the patch CNN, 64 for the FCNNs.
+        target: ``"ssim_map"`` (experiment II) or ``"patch_mae"`` (experiment I).
+        batch_size: patches per batch (training and validation).
+        batches_per_epoch: training batches per epoch.
+        val_patches: size of the fixed validation set.
+        jitter: ``{"hsv": bool, "geometric": bool}``.
+        seed: seeds patch positions, jitter and the validation set.
+        num_workers, pin_memory: passed to the DataLoaders.
+    """
+
+    def __init__(
+        self,
+        data_dir: str | os.PathLike,
+        val_scene: str | None = None,
+        patch_size: int = 64,
+        target: str = "ssim_map",
+        batch_size: int = 16,
+        batches_per_epoch: int = 256,
+        val_patches: int = 256,
+        jitter: Mapping[str, bool] | None = None,
+        seed: int = 12345,
+        num_workers: int = 0,
+        pin_memory: bool = False,
+    ) -> None:
+        super().__init__()
+        check_target(target)
+        jitter = dict(jitter or {})
+        unknown = set(jitter) - {"hsv", "geometric"}
+        if unknown:
+            raise ValueError(f"unknown jitter switches {sorted(unknown)}; use hsv and geometric")
+        self.save_hyperparameters(logger=False)
+        self.data_dir = str(data_dir)
+        self.val_scene = val_scene
+        self.patch_size = patch_size
+        self.target = target
+        self.batch_size = batch_size
+        self.batches_per_epoch = batches_per_epoch
+        self.val_patches = val_patches
+        self.hsv = bool(jitter.get("hsv", True))
+        self.geometric = bool(jitter.get("geometric", True))
+        self.seed = seed
+        self.num_workers = num_workers
+        self.pin_memory = pin_memory
+        self.train_pairs: list[ImagePair] = []
+        self.val_pairs: list[ImagePair] = []
+        self.train_set: TrainPatches | None = None
+        self.val_set: TensorDataset | None = None
+
+    def setup(self, stage: str | None = None) -> None:
+        """Read the manifest, split the fold, tone-map the images (once) and build the patch sets.
+
+        Raises ``ManifestError`` / ``FoldError`` / ``ValueError`` with one-line messages.
+        """
+        if self.train_set is not None:
+            return
+        records, _ = read_manifest(self.data_dir)
+        train, val = split_by_scene(records, self.val_scene)
+        self.train_pairs = load_pairs(self.data_dir, train)
+        self.val_pairs = load_pairs(self.data_dir, val)
+        self.train_set = TrainPatches(
+            self.train_pairs,
+            self.patch_size,
+            self.target,
+            self.batches_per_epoch * self.batch_size,
+            self.seed,
+            hsv=self.hsv,
+            geometric=self.geometric,
+        )
+        if self.val_pairs:
+            self.val_set = fixed_patches(
+                self.val_pairs, self.val_patches, self.patch_size, self.target, self.seed + _VAL_STREAM
+            )
+
+    def train_eval_set(self, n: int | None = None) -> TensorDataset:
+        """A fixed seeded set of ``n`` (default ``val_patches``) unjittered training patches, for reports."""
+        self.setup()
+        n = self.val_patches if n is None else n
+        return fixed_patches(self.train_pairs, n, self.patch_size, self.target, self.seed + _TRAIN_EVAL_STREAM)
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(
+            self.train_set,
+            batch_size=self.batch_size,
+            sampler=EpochSampler(len(self.train_set)),
+            num_workers=self.num_workers,
+            pin_memory=self.pin_memory,
+            persistent_workers=self.num_workers > 0,
+        )
+
+    def val_dataloader(self) -> DataLoader | list:
+        # An empty list tells Lightning there is no validation (val_scene=None).
+        if self.val_set is None:
+            return []
+        return self.eval_dataloader(self.val_set)
+
+    def eval_dataloader(self, dataset: TensorDataset) -> DataLoader:
+        """A sequential loader over a fixed patch set."""
+        return DataLoader(dataset, batch_size=self.batch_size, shuffle=False, num_workers=0, pin_memory=self.pin_memory)

@@ -1,0 +1,223 @@
+"""Bring an external folder of renders into the dataset form, so any renderer's output can be evaluated.
+
+A folder such as::
+
+    renders/cornell/path - 16.exr      renders/cornell/path - 64.exr     renders/cornell/reference.exr
+    renders/door/bdpt - 8.png          renders/door/bdpt - 2048.png
+
+becomes :class:`nriqa.manifest.Record` s (role ``test``, or ``twin`` for a second seed, and one
+``reference`` per scene), in memory (:func:`scan_external`) or as a manifest written into an
+output folder (:func:`import_external`; ``python -m nriqa.external``). Names are parsed with a
+pattern of ``{scene}``, ``{algorithm}``, ``{spp}`` and optionally ``{variant}`` and ``{seed}``
+fields over the path relative to the folder, without its suffix (default
+``"{scene}/{algorithm} - {spp}"``). The reference of each scene is either
+
+* a glob relative to the folder, ``{scene}`` substituted (default ``"{scene}/reference.*"``), or
+* ``"highest:ALGO"``: the highest-spp image of algorithm ALGO in that scene (it is then not a test image).
+
+Images are EXR (linear HDR, tone-mapped by :func:`nriqa.tonemap.tonemap` when loaded) or PNG/JPEG
+(display-referred LDR: used as they are, no tone map). :func:`load_display` loads either.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+from torch import Tensor
+
+from nriqa.data.images import load_ldr
+from nriqa.exr import ImageReadError
+from nriqa.manifest import Record, write_manifest
+
+DEFAULT_PATTERN = "{scene}/{algorithm} - {spp}"
+DEFAULT_REFERENCE = "{scene}/reference.*"
+HDR_SUFFIXES = (".exr",)
+LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
+SUFFIXES = HDR_SUFFIXES + LDR_SUFFIXES
+_FIELDS = {"scene": r"[^/]+?", "algorithm": r"[^/]+?", "spp": r"\d+", "variant": r"\d+", "seed": r"\d+"}
+
+
+class ExternalError(ValueError):
+    """An external folder that cannot be read as a dataset; the message says which file and what to do."""
+
+
+def compile_pattern(pattern: str) -> re.Pattern:
+    """Turn ``"{scene}/{algorithm} - {spp}"`` into a regex with one named group per field.
+
+    Raises:
+        ExternalError: an unknown field, or ``{scene}``, ``{algorithm}`` or ``{spp}`` missing.
+    """
+    fields = re.findall(r"\{(\w+)\}", pattern)
+    unknown = sorted(set(fields) - set(_FIELDS))
+    if unknown:
+        raise ExternalError(f"pattern {pattern!r}: unknown field(s) {unknown}; use {{scene}}, {{algorithm}}, {{spp}}, {{variant}}, {{seed}}")
+    missing = [f for f in ("scene", "algorithm", "spp") if f not in fields]
+    if missing:
+        raise ExternalError(f"pattern {pattern!r} lacks {', '.join('{' + f + '}' for f in missing)}")
+    parts = re.split(r"(\{\w+\})", pattern)
+    regex = "".join(f"(?P<{p[1:-1]}>{_FIELDS[p[1:-1]]})" if re.fullmatch(r"\{\w+\}", p) else re.escape(p) for p in parts)
+    return re.compile(regex)
+
+
+def load_display(path: str | os.PathLike) -> Tensor:
+    """Load an image as display-referred LDR ``(3, H, W)`` float32 in [0, 1].
+
+    EXR is linear HDR and goes through the package's tone map (:func:`nriqa.data.images.load_ldr`);
+    PNG/JPEG are already display-referred and are only scaled to [0, 1] (8 or 16 bit; grey
+    replicated to RGB, alpha dropped).
+
+    Raises:
+        ImageReadError: missing, unreadable or unsupported file.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in HDR_SUFFIXES:
+        return load_ldr(path)
+    if suffix not in LDR_SUFFIXES:
+        raise ImageReadError(f"{path}: unsupported image type {suffix!r}; use {', '.join(SUFFIXES)}")
+    if not path.is_file():
+        raise ImageReadError(f"{path}: no such file")
+    try:
+        with Image.open(path) as img:
+            if img.mode.startswith("I"):
+                arr = np.asarray(img, dtype=np.float32) / 65535.0
+            else:
+                arr = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
+    except OSError as exc:
+        raise ImageReadError(f"{path}: not a readable image ({exc})") from None
+    if arr.ndim == 2:
+        arr = np.repeat(arr[..., None], 3, axis=2)
+    return torch.from_numpy(np.ascontiguousarray(arr.transpose(2, 0, 1))).clamp(0.0, 1.0)
+
+
+def _images(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in SUFFIXES and not p.name.startswith("."))
+
+
+def _find_reference(folder: Path, scene: str, reference: str, parsed: list[tuple[Path, dict]]) -> Path:
+    if reference.startswith("highest:"):
+        algorithm = reference.split(":", 1)[1]
+        own = [(int(f["spp"]), p) for p, f in parsed if f["scene"] == scene and f["algorithm"] == algorithm]
+        if not own:
+            raise ExternalError(f"{folder}: scene {scene!r} has no image of algorithm {algorithm!r} to take the reference from")
+        return max(own)[1]
+    glob = reference.replace("{scene}", scene)
+    hits = sorted(p for p in folder.glob(glob) if p.is_file() and p.suffix.lower() in SUFFIXES)
+    if not hits:
+        raise ExternalError(f"{folder}: scene {scene!r} has no reference matching {glob!r}; add one or pass --reference")
+    if len(hits) > 1:
+        names = ", ".join(str(h.relative_to(folder)) for h in hits)
+        raise ExternalError(f"{folder}: reference pattern {glob!r} matches {len(hits)} files ({names}); make it match one")
+    return hits[0]
+
+
+def scan_external(folder: str | os.PathLike, pattern: str = DEFAULT_PATTERN, reference: str = DEFAULT_REFERENCE) -> list[Record]:
+    """Records for every image of an external ``folder``; paths relative to ``folder``.
+
+    Images sharing scene, variant, algorithm and spp but differing in ``{seed}`` are paired as
+    ``test`` and ``twin`` (the lower seed is the test image).
+
+    Raises:
+        ExternalError: no images, an image name the pattern does not parse, a scene without a
+            (unique) reference, more than two images for one (scene, variant, algorithm, spp), or
+            an image whose size differs from its reference.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ExternalError(f"{folder}: no such folder")
+    regex = compile_pattern(pattern)
+    files = _images(folder)
+    if not files:
+        raise ExternalError(f"{folder}: no images ({', '.join(SUFFIXES)}) found")
+    is_glob_reference = not reference.startswith("highest:")
+    parsed, unparsed = [], []
+    for path in files:
+        stem = path.relative_to(folder).with_suffix("").as_posix()
+        m = regex.fullmatch(stem)
+        if m:
+            parsed.append((path, m.groupdict()))
+        else:
+            unparsed.append(path)
+    scenes = sorted({f["scene"] for _, f in parsed})
+    refs = {s: _find_reference(folder, s, reference, parsed) for s in scenes}
+    bad = [p for p in unparsed if not (is_glob_reference and p in refs.values())]
+    if bad:
+        example = pattern.replace("{scene}", "cornell").replace("{algorithm}", "path").replace("{spp}", "16").replace("{variant}", "0").replace("{seed}", "1")
+        raise ExternalError(f"{bad[0]}: name does not match pattern {pattern!r} (e.g. '{example}.exr'); rename it or pass --pattern")
+    if not parsed:
+        raise ExternalError(f"{folder}: no image name matches pattern {pattern!r}; pass --pattern")
+
+    sizes: dict[Path, tuple[int, int]] = {}
+
+    def size(p: Path) -> tuple[int, int]:
+        if p not in sizes:
+            sizes[p] = tuple(load_display(p).shape[-2:])
+        return sizes[p]
+
+    records, groups = [], {}
+    for s, ref in refs.items():
+        rel = ref.relative_to(folder).as_posix()
+        h, w = size(ref)
+        records.append(Record(id=f"{s}/reference", scene=s, variant=0, algorithm="reference", role="reference", spp=0, seed=0,
+                              path=rel, reference=rel, width=w, height=h, render_seconds=0.0, backend="external"))
+    for path, f in parsed:
+        if path == refs[f["scene"]]:
+            continue
+        key = (f["scene"], int(f.get("variant") or 0), f["algorithm"], int(f["spp"]))
+        groups.setdefault(key, []).append((int(f.get("seed") or 0), path))
+    for (scene, variant, algorithm, spp), members in sorted(groups.items()):
+        if len(members) > 2:
+            names = ", ".join(str(p.relative_to(folder)) for _, p in members)
+            raise ExternalError(f"{folder}: {len(members)} images for {scene} {algorithm} {spp} spp ({names}); keep one, or two with a {{seed}} field")
+        members.sort()
+        ids = [p.relative_to(folder).with_suffix("").as_posix() for _, p in members]
+        ref = refs[scene]
+        for k, (seed, path) in enumerate(members):
+            if size(path) != size(ref):
+                raise ExternalError(f"{path}: size {size(path)[1]}x{size(path)[0]} differs from its reference {ref} ({size(ref)[1]}x{size(ref)[0]})")
+            h, w = size(path)
+            records.append(Record(
+                id=ids[k], scene=scene, variant=variant, algorithm=algorithm, role=("test", "twin")[k], spp=spp, seed=seed,
+                path=path.relative_to(folder).as_posix(), reference=ref.relative_to(folder).as_posix(), width=w, height=h,
+                render_seconds=0.0, backend="external", twin=ids[1 - k] if len(members) == 2 else None,
+            ))
+    return records
+
+
+def import_external(folder: str | os.PathLike, out: str | os.PathLike, pattern: str = DEFAULT_PATTERN,
+                    reference: str = DEFAULT_REFERENCE) -> Path:
+    """Scan ``folder`` and write ``<out>/manifest.json`` whose paths point back into it; returns the manifest path.
+
+    The images are not copied. Note the manifest may name PNG files: :func:`load_display` reads
+    them, the EXR-only training loaders do not.
+    """
+    folder, out = Path(folder).resolve(), Path(out).resolve()
+    records = scan_external(folder, pattern, reference)
+    rebased = [Record(**{**r.to_dict(), "path": os.path.relpath(folder / r.path, out),
+                         "reference": os.path.relpath(folder / r.reference, out)}) for r in records]
+    return write_manifest(out, rebased, {"external": str(folder), "pattern": pattern, "reference": reference})
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m nriqa.external", description="Write a manifest for an external folder of renders.")
+    parser.add_argument("folder", help="folder of renders, e.g. {scene}/{algorithm} - {spp}.exr")
+    parser.add_argument("--out", required=True, help="folder to write manifest.json into")
+    parser.add_argument("--pattern", default=DEFAULT_PATTERN, help=f"name pattern without suffix (default {DEFAULT_PATTERN!r})")
+    parser.add_argument("--reference", default=DEFAULT_REFERENCE, help="reference glob with {scene}, or highest:ALGO (default %(default)r)")
+    args = parser.parse_args(argv)
+    try:
+        path = import_external(args.folder, args.out, args.pattern, args.reference)
+    except (ExternalError, ImageReadError) as exc:
+        sys.exit(f"error: {exc}")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,237 @@
+"""The LightningModule of both experiments: one network, one loss, per-epoch correlations.
+
+``net`` is given as a spec ``{"name": ..., **kwargs}`` for :func:`nriqa.models.create_model`, so
+the checkpoint's hyper-parameters alone rebuild the network (:func:`load_net_from_checkpoint`).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import lightning as L
+import torch
+from omegaconf import DictConfig, OmegaConf
+from torch import Tensor, nn
+from torchmetrics import CatMetric, MeanMetric
+
+from nriqa.correlation import kendall_tau, pcc, srocc
+from nriqa.models import create_model
+
+STAGES = ("train", "val")
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot rebuild a network; the message says which file and why."""
+
+
+def metric_samples(pred: Tensor, target: Tensor, per_map: int = 16) -> tuple[Tensor, Tensor]:
+    """Flatten a batch of predictions and targets into the 1-D samples the correlations see.
+
+    Patch scores ``(B, 1)`` are kept whole. Maps ``(B, 1, H, W)`` contribute ``per_map`` pixels
+    each, at positions fixed by the map size (a seeded permutation), so every epoch correlates
+    the same pixels and the cost stays small.
+
+    Returns:
+        ``(pred, target)``, each ``(N,)`` float32 on the input's device.
+    """
+    if pred.ndim <= 2:
+        return pred.reshape(-1).float(), target.reshape(-1).float()
+    h, w = pred.shape[-2:]
+    idx = _pixel_subset(h, w, per_map).to(pred.device)
+    return pred.flatten(1)[:, idx].reshape(-1).float(), target.flatten(1)[:, idx].reshape(-1).float()
+
+
+@functools.lru_cache(maxsize=8)
+def _pixel_subset(h: int, w: int, n: int) -> Tensor:
+    g = torch.Generator().manual_seed(h * 100_003 + w)
+    return torch.randperm(h * w, generator=g)[: min(n, h * w)]
+
+
+def correlations(pred: Tensor, target: Tensor) -> dict[str, float]:
+    """``{"pcc", "srocc", "tau"}`` of two 1-D tensors (:mod:`nriqa.correlation`; 0.0 when undefined)."""
+    if pred.numel() < 2:
+        return {"pcc": 0.0, "srocc": 0.0, "tau": 0.0}
+    return {"pcc": pcc(pred, target), "srocc": srocc(pred, target), "tau": kendall_tau(pred, target)}
+
+
+def _spec(obj) -> dict:
+    return OmegaConf.to_container(obj, resolve=True) if isinstance(obj, DictConfig) else dict(obj)
+
+
+def _describe(factory) -> dict | str | None:
+    """A plain-data record of an optimizer/scheduler factory for the hyper-parameters."""
+    if factory is None:
+        return None
+    if isinstance(factory, functools.partial):
+        return {"name": f"{factory.func.__module__}.{factory.func.__qualname__}", **factory.keywords}
+    return repr(factory)
+
+
+class NRIQAModule(L.LightningModule):
+    """Train a patch CNN or an FCNN on (noisy patch, full-reference target) pairs (thesis ch. 5).
+
+    Logs per epoch for ``train`` and ``val``: ``loss``, ``pcc``, ``srocc``, ``tau`` (predictions
+    and targets are gathered over the epoch with torchmetrics, maps subsampled with
+    :func:`metric_samples`, capped at ``max_metric_samples`` evenly spaced samples).
+
+    A non-finite training loss is counted (``nonfinite_steps``, ``first_nonfinite_step``), the
+    optimizer step is skipped, and, with ``stop_on_nonfinite``, training stops after that batch.
+    ``history`` holds one row of plain floats per epoch; ``last_val`` the last validation samples.
+
+    Args:
+        net: ``{"name": str, **kwargs}`` for :func:`nriqa.models.create_model`, or a built module
+            (then a checkpoint cannot rebuild it).
+        loss: ``loss(pred, target) -> scalar`` module (:func:`nriqa.losses.create_loss`).
+        optimizer: factory ``optimizer(params=...)`` (Hydra ``_partial_: true``).
+        scheduler: optional factory ``scheduler(optimizer=...)``, stepped per epoch.
+        scheduler_monitor: metric a plateau scheduler watches.
+        metric_pixels_per_map: pixels per predicted map fed to the correlations.
+        max_metric_samples: cap on correlation samples per stage and epoch.
+        stop_on_nonfinite: stop training at the first NaN/Inf loss.
+    """
+
+    def __init__(
+        self,
+        net: Mapping | nn.Module,
+        loss: nn.Module,
+        optimizer: Callable,
+        scheduler: Callable | None = None,
+        scheduler_monitor: str = "val/loss",
+        metric_pixels_per_map: int = 16,
+        max_metric_samples: int = 2048,
+        stop_on_nonfinite: bool = True,
+    ) -> None:
+        super().__init__()
+        if isinstance(net, nn.Module):
+            net_spec = None
+        else:
+            net_spec = _spec(net)
+            net = create_model(**net_spec)
+        self.net = net
+        self.loss_fn = loss
+        self.optimizer_factory = optimizer
+        self.scheduler_factory = scheduler
+        self.scheduler_monitor = scheduler_monitor
+        self.metric_pixels_per_map = metric_pixels_per_map
+        self.max_metric_samples = max_metric_samples
+        self.stop_on_nonfinite = stop_on_nonfinite
+        self.save_hyperparameters(
+            {
+                "net": net_spec,
+                "loss": repr(loss),
+                "optimizer": _describe(optimizer),
+                "scheduler": _describe(scheduler),
+                "metric_pixels_per_map": metric_pixels_per_map,
+                "max_metric_samples": max_metric_samples,
+            }
+        )
+        for stage in STAGES:
+            setattr(self, f"{stage}_loss", MeanMetric())
+            setattr(self, f"{stage}_pred", CatMetric())
+            setattr(self, f"{stage}_target", CatMetric())
+        self.nonfinite_steps = 0
+        self.first_nonfinite_step: int | None = None
+        self.history: list[dict[str, float]] = []
+        self.last_val: tuple[Tensor, Tensor] | None = None
+        self._val_row: dict[str, float] = {}
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.net(x)
+
+    def _step(self, batch, stage: str) -> Tensor:
+        x, y = batch
+        pred = self(x)
+        loss = self.loss_fn(pred, y)
+        if torch.isfinite(loss):
+            getattr(self, f"{stage}_loss").update(loss.detach(), weight=x.shape[0])
+            p, t = metric_samples(pred.detach(), y, self.metric_pixels_per_map)
+            getattr(self, f"{stage}_pred").update(p)
+            getattr(self, f"{stage}_target").update(t)
+        return loss
+
+    def training_step(self, batch, batch_idx: int) -> Tensor | None:
+        loss = self._step(batch, "train")
+        if torch.isfinite(loss):
+            return loss
+        self.nonfinite_steps += 1
+        if self.first_nonfinite_step is None:
+            self.first_nonfinite_step = int(self.global_step)
+            self.print(f"non-finite training loss ({loss.item()}) at step {self.global_step}")
+        if self.stop_on_nonfinite:
+            self.trainer.should_stop = True
+        # Returning None skips the optimizer step, so the weights stay as they were.
+        return None
+
+    def validation_step(self, batch, batch_idx: int) -> Tensor:
+        return self._step(batch, "val")
+
+    def _epoch_metrics(self, stage: str) -> dict[str, float]:
+        """Compute, log and reset the epoch's ``{stage}/loss|pcc|srocc|tau``."""
+        metrics = {}
+        loss_m, pred_m, target_m = (getattr(self, f"{stage}_{k}") for k in ("loss", "pred", "target"))
+        if loss_m.update_count:
+            metrics["loss"] = float(loss_m.compute())
+        if pred_m.update_count:
+            pred, target = pred_m.compute().cpu(), target_m.compute().cpu()
+            if pred.numel() > self.max_metric_samples:
+                keep = torch.linspace(0, pred.numel() - 1, self.max_metric_samples).long()
+                pred, target = pred[keep], target[keep]
+            finite = torch.isfinite(pred) & torch.isfinite(target)
+            metrics.update(correlations(pred[finite], target[finite]))
+            if stage == "val":
+                self.last_val = (pred, target)
+        for m in (loss_m, pred_m, target_m):
+            m.reset()
+        metrics = {f"{stage}/{k}": v for k, v in metrics.items()}
+        if metrics and not self.trainer.sanity_checking:
+            self.log_dict(metrics, sync_dist=False)
+        return metrics
+
+    def on_validation_epoch_end(self) -> None:
+        row = self._epoch_metrics("val")
+        if not self.trainer.sanity_checking:
+            self._val_row = row
+
+    def on_train_epoch_end(self) -> None:
+        row = {"epoch": float(self.current_epoch), **self._epoch_metrics("train"), **self._val_row}
+        row["train/nonfinite_steps"] = float(self.nonfinite_steps)
+        row["nonfinite_params"] = float(not all(torch.isfinite(p).all() for p in self.net.parameters()))
+        self.log_dict({"train/nonfinite_steps": row["train/nonfinite_steps"], "nonfinite_params": row["nonfinite_params"]})
+        self.history.append(row)
+        self._val_row = {}
+
+    def configure_optimizers(self):
+        opt = self.optimizer_factory(params=self.parameters())
+        if self.scheduler_factory is None:
+            return opt
+        sched = self.scheduler_factory(optimizer=opt)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "monitor": self.scheduler_monitor, "interval": "epoch"}}
+
+
+def load_net_from_checkpoint(path: str | os.PathLike, map_location: str | torch.device = "cpu") -> nn.Module:
+    """Rebuild the network of an :class:`NRIQAModule` checkpoint from the file alone, in eval mode.
+
+    The checkpoint's ``hyper_parameters["net"]`` spec goes to :func:`nriqa.models.create_model`
+    and the ``net.*`` weights are loaded strictly. Loads with ``weights_only=True``.
+
+    Raises:
+        CheckpointError: missing or unreadable file, or a checkpoint without a net spec.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"{path}: no such checkpoint")
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # torch raises many types (UnpicklingError, RuntimeError, EOFError)
+        raise CheckpointError(f"{path}: not a readable checkpoint ({type(exc).__name__}: {exc})") from None
+    spec = (ckpt.get("hyper_parameters") or {}).get("net")
+    if not spec:
+        raise CheckpointError(f"{path}: no network spec in its hyper_parameters; it was not written by NRIQAModule with net={{name: ...}}")
+    net = create_model(**spec)
+    state = {k[len("net.") :]: v for k, v in ckpt["state_dict"].items() if k.startswith("net.")}
+    net.load_state_dict(state)
+    return net.eval()
+

@@ -1,0 +1,247 @@
+"""Shipped weights: ``nriqa/weights/<name>.pt`` plus a model card ``<name>.json`` each.
+
+The ``.pt`` file holds plain data only -- ``{"format": 1, "spec": {"name": model, **kwargs},
+"state_dict": {...}}`` -- so it loads with ``torch.load(weights_only=True)``. The card is JSON:
+what the weights are (data preset, commit, command, training time, cross-validation figures,
+whatever the exporter passes) plus ``sha256`` of the ``.pt`` file, checked on every load.
+Weights are local files shipped in the package; nothing is downloaded.
+
+Export a training checkpoint::
+
+    python -m nriqa.pretrained export logs/train/runs/.../checkpoints/best.ckpt fcnn_fast \\
+        --card data=default --card "command=python train.py experiment=fcnn_fast" --card val_srocc=0.91
+    python -m nriqa.pretrained list
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import hashlib
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from nriqa.atomic import atomic_path, write_text_atomic
+from nriqa.models import create_model
+
+__all__ = ["WEIGHTS_DIR", "PretrainedError", "save_pretrained", "load_pretrained", "list_pretrained", "sha256_file"]
+
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+FORMAT = 1
+
+
+class PretrainedError(ValueError):
+    """Shipped weights that cannot be used (unknown name, checksum mismatch, unreadable); one line."""
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def list_pretrained(dir: str | os.PathLike | None = None) -> list[str]:
+    """Sorted names with both a card and a weights file in ``dir`` (default: the shipped weights)."""
+    root = Path(dir) if dir is not None else WEIGHTS_DIR
+    if not root.is_dir():
+        return []
+    return sorted(p.stem for p in root.glob("*.json") if p.with_suffix(".pt").is_file())
+
+
+def save_pretrained(
+    net: nn.Module,
+    name: str,
+    card: Mapping,
+    dir: str | os.PathLike | None = None,
+    spec: Mapping | None = None,
+) -> Path:
+    """Write ``net`` as shipped weights ``<dir>/<name>.pt`` and its card ``<dir>/<name>.json``.
+
+    Args:
+        net: a model built by :func:`nriqa.models.create_model`.
+        name: the weights' name (a file stem), e.g. ``"fcnn_fast"``.
+        card: JSON-serialisable facts about the weights (data, commit, command, time, figures).
+        dir: target folder (default: the package's ``nriqa/weights``).
+        spec: ``{"name": model, **kwargs}`` that rebuilds ``net`` (default ``{"name": name}``); it is
+            checked by rebuilding the model and loading the weights strictly before anything is written.
+
+    Both files are written atomically, the weights first: a card exists only for complete weights.
+    The card gets ``name``, ``spec``, ``parameters``, ``file`` and ``sha256`` added.
+
+    Returns:
+        The path of the ``.pt`` file.
+    """
+    spec = dict(spec) if spec is not None else {"name": name}
+    state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
+    try:
+        create_model(**spec).load_state_dict(state)
+    except (ValueError, RuntimeError, TypeError) as exc:
+        raise PretrainedError(f"weights {name!r}: spec {spec} does not rebuild this network ({exc}); pass spec=") from None
+    if not all(torch.isfinite(v).all() for v in state.values() if v.is_floating_point()):
+        raise PretrainedError(f"weights {name!r}: the network has NaN/Inf parameters; refusing to ship them")
+    root = Path(dir) if dir is not None else WEIGHTS_DIR
+    pt = root / f"{name}.pt"
+    with atomic_path(pt) as tmp:
+        torch.save({"format": FORMAT, "spec": spec, "state_dict": state}, tmp)
+    full_card = {
+        **dict(card),
+        "name": name,
+        "spec": spec,
+        "parameters": sum(p.numel() for p in net.parameters() if p.requires_grad),
+        "file": pt.name,
+        "sha256": sha256_file(pt),
+    }
+    write_text_atomic(pt.with_suffix(".json"), json.dumps(full_card, indent=2, sort_keys=True) + "\n")
+    return pt
+
+
+def load_card(name: str, dir: str | os.PathLike | None = None) -> tuple[dict, Path]:
+    """The card of shipped weights ``name`` and the path of its ``.pt`` file.
+
+    ``name`` may also be a path to a ``.pt`` file with its ``.json`` card beside it.
+
+    Raises:
+        PretrainedError: unknown name (the message lists what is available) or unreadable card.
+    """
+    as_path = Path(name)
+    if as_path.suffix == ".pt":
+        pt = as_path
+    else:
+        pt = (Path(dir) if dir is not None else WEIGHTS_DIR) / f"{name}.pt"
+    card_path = pt.with_suffix(".json")
+    if not pt.is_file() or not card_path.is_file():
+        avail = list_pretrained(pt.parent)
+        have = f"available: {', '.join(avail)}" if avail else "none are there yet"
+        raise PretrainedError(
+            f"no shipped weights {name!r} in {pt.parent} ({have}); train a model and export it with "
+            f"'python -m nriqa.pretrained export CHECKPOINT NAME', or pass a checkpoint"
+        )
+    try:
+        card = json.loads(card_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise PretrainedError(f"{card_path}: unreadable model card ({exc})") from None
+    if not isinstance(card, dict) or "sha256" not in card or "spec" not in card:
+        raise PretrainedError(f"{card_path}: model card without sha256/spec; re-export the weights")
+    return card, pt
+
+
+def load_pretrained(name: str, dir: str | os.PathLike | None = None) -> nn.Module:
+    """Build the network of shipped weights ``name`` in eval mode, after checking its SHA-256.
+
+    Args:
+        name: weights name (``list_pretrained()``), or a path to a ``.pt`` with its card beside it.
+        dir: folder holding ``<name>.pt`` and ``<name>.json`` (default: the package's ``nriqa/weights``).
+
+    Raises:
+        PretrainedError: unknown name (lists the available ones), checksum mismatch, unreadable file.
+    """
+    card, pt = load_card(name, dir)
+    actual = sha256_file(pt)
+    if actual != card["sha256"]:
+        raise PretrainedError(
+            f"{pt}: sha256 mismatch (file {actual[:12]}..., card {card['sha256'][:12]}...); "
+            "the weights are corrupt or were replaced: re-export or reinstall them"
+        )
+    try:
+        payload = torch.load(pt, map_location="cpu", weights_only=True)
+        net = create_model(**payload["spec"])
+        net.load_state_dict(payload["state_dict"])
+    except Exception as exc:  # torch.load raises many types; a spec/state mismatch raises RuntimeError
+        raise PretrainedError(f"{pt}: cannot rebuild the network ({type(exc).__name__}: {exc})") from None
+    return net.eval()
+
+
+def _parse_card(items: list[str]) -> dict:
+    card = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise PretrainedError(f"--card {item!r}: expected key=value")
+        try:
+            card[key] = json.loads(value)
+        except ValueError:
+            card[key] = value
+    return card
+
+
+def _git_commit() -> str | None:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    if out.returncode != 0:
+        return None
+    return out.stdout.strip() or None
+
+
+def export_checkpoint(checkpoint: str | os.PathLike, name: str, card: Mapping, dir: str | os.PathLike | None = None) -> Path:
+    """Turn a Lightning checkpoint of :class:`nriqa.lit_module.NRIQAModule` into shipped weights.
+
+    The card gets ``checkpoint``, ``exported`` (UTC time), ``commit`` (``git rev-parse HEAD``),
+    ``epoch``, ``global_step`` and the ModelCheckpoint ``monitor``/``best_model_score`` added
+    (entries given in ``card`` win). Returns the ``.pt`` path.
+    """
+    from nriqa.lit_module import load_net_from_checkpoint
+
+    net = load_net_from_checkpoint(checkpoint)
+    ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
+    full = {
+        "checkpoint": str(checkpoint),
+        "exported": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": _git_commit(),
+        "epoch": ckpt.get("epoch"),
+        "global_step": ckpt.get("global_step"),
+        **_checkpoint_monitor(ckpt),
+        **dict(card),
+    }
+    return save_pretrained(net, name, full, dir=dir, spec=ckpt["hyper_parameters"]["net"])
+
+
+def _checkpoint_monitor(ckpt: Mapping) -> dict:
+    """The ModelCheckpoint callback's monitored metric and best value, if the checkpoint has one."""
+    for key, state in (ckpt.get("callbacks") or {}).items():
+        if "ModelCheckpoint" in str(key) and isinstance(state, Mapping) and state.get("best_model_score") is not None:
+            return {"monitor": state.get("monitor"), "best_model_score": float(state["best_model_score"])}
+    return {}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m nriqa.pretrained export CHECKPOINT NAME [--card k=v ...] [--dir DIR]`` or ``list``."""
+    from nriqa.lit_module import CheckpointError
+
+    ap = argparse.ArgumentParser(prog="python -m nriqa.pretrained", description="Export or list shipped weights.")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    ex = sub.add_parser("export", help="turn a training checkpoint into shipped weights + model card")
+    ex.add_argument("checkpoint")
+    ex.add_argument("name", help="weights name, e.g. fcnn_fast")
+    ex.add_argument("--card", action="append", default=[], metavar="KEY=VALUE", help="a card entry (value parsed as JSON if it can be)")
+    ex.add_argument("--dir", default=None, help=f"target folder (default {WEIGHTS_DIR})")
+    ls = sub.add_parser("list", help="list shipped weights and their cards")
+    ls.add_argument("--dir", default=None)
+    args = ap.parse_args(argv)
+    try:
+        if args.cmd == "export":
+            pt = export_checkpoint(args.checkpoint, args.name, _parse_card(args.card), dir=args.dir)
+            print(f"wrote {pt} and {pt.with_suffix('.json')}")
+        else:
+            for name in list_pretrained(args.dir):
+                card, _ = load_card(name, args.dir)
+                print(name, json.dumps({k: v for k, v in card.items() if k not in ("spec",)}, sort_keys=True))
+    except (PretrainedError, CheckpointError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,297 @@
+"""The Scorer: one object from an image to its predicted quality map and pooled score.
+
+Load weights -> sanitise -> tone map (HDR only) -> (tiled) forward -> map + mean-pooled score.
+Every consumer (``predict.py``, the render loops, evaluation) goes through it, so the
+preprocessing is the training one: :func:`nriqa.tonemap.tonemap` on linear HDR, nothing on LDR.
+
+Examples:
+    >>> scorer = Scorer.from_pretrained("fcnn_fast")        # doctest: +SKIP
+    >>> result = scorer(hdr_image)                          # doctest: +SKIP  (H, W, 3) float32
+    >>> result.map.shape, result.score                      # doctest: +SKIP
+    ((480, 640), 0.87)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from nriqa.tonemap import tonemap
+
+__all__ = ["Scorer", "ScoreResult", "ScorerInputError"]
+
+
+class ScorerInputError(ValueError):
+    """An image the scorer refuses (wrong shape, too small, wrong type); the message says why."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ScoreResult:
+    """What :class:`Scorer` returns.
+
+    Attributes:
+        map: predicted quality per pixel, ``(H, W)`` for one image or ``(B, H, W)`` for a batch;
+            a ``numpy.ndarray`` for numpy input, a ``torch.Tensor`` (on the input's device) for torch input.
+        score: the mean of the map: a ``float`` for one image, ``(B,)`` (array or tensor) for a batch.
+        quantity: ``"ssim"`` (map models: predicted SSIM in [0, 1], higher is better) or ``"mae"``
+            (the patch model: predicted mean absolute error of the tone-mapped image, lower is better).
+        hdr: whether each image was treated as linear HDR and tone-mapped (a bool, or a list for a batch).
+    """
+
+    map: np.ndarray | Tensor
+    score: float | np.ndarray | Tensor
+    quantity: str
+    hdr: bool | list[bool]
+
+
+class Scorer:
+    """Predict a quality map and a pooled score for rendered images, deterministically.
+
+    Args:
+        net: a registered model (:mod:`nriqa.models`) with ``output`` ``"map"`` (predicts an SSIM
+            map, thesis ch. 5 experiment II) or ``"patch"`` (predicts the MAE of a 32x32 patch,
+            experiment I). Put in eval mode; its weights are not changed.
+        tile: side of the square output tiles a map model is run on, a multiple of its ``align``
+            (rounded up if not). Images whose sides are both at most ``tile`` go in one forward;
+            ``0`` never tiles. For the patch model it caps the windows per forward at ``tile * 4``.
+        stride: step in pixels between the 32x32 windows of the patch model (ignored for map models).
+        device: where the network runs (default: where its parameters are).
+
+    Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
+    ``(B, 3, H, W)``; grayscale ``(H, W)`` (or one channel) is replicated to RGB, a fourth (alpha)
+    channel is dropped. Floats of any precision or ``uint8``/``uint16`` (divided by 255/65535, LDR).
+
+    HDR or LDR, per image, when ``hdr=None``: an image with any value above 1 (``+inf`` included)
+    is linear HDR and goes through :func:`nriqa.tonemap.tonemap`; an image within [0, 1] is taken
+    as display-referred LDR and used as is. A dim linear render that happens to stay below 1 is
+    therefore taken as LDR: pass ``hdr=True`` for renders (``predict.py`` does for EXR files).
+
+    Sanitising policy (the input is a render, so bad pixels are expected; the score is never NaN):
+
+    * HDR: exactly the tone map's policy -- NaN -> 0, negative and ``-inf`` -> 0, finite values
+      clamped to 1e30 (so huge values are white), a pixel with a ``+inf`` channel -> white.
+    * LDR: NaN -> 0, negative -> 0, ``+inf`` and values above 1 (only possible with ``hdr=False``)
+      -> 1, i.e. the same outcome as the HDR path for the same bad pixel.
+    * Images smaller than the model's receptive field (``fcnn`` 9, ``fcnn_fast`` 14, ``patch_cnn``
+      32 px) on either side are refused with :class:`ScorerInputError`: padding would make up most of
+      what the network sees, and the SSIM the map predicts is itself undefined below 6x6 pixels.
+
+    Maps: a map model's output is clipped to [0, 1] (the range of its SSIM target). The patch model
+    gets a map by sliding 32x32 windows with ``stride`` over the image (the last window in each
+    direction is moved in to touch the border, so every pixel is covered); each window's predicted
+    MAE is spread over its pixels, and each pixel takes the average over the windows that cover it.
+
+    Tiling: a map model's output at a pixel depends only on the input within half its receptive
+    field, so each output tile is computed from an input tile grown by a halo of
+    ``ceil(receptive_field / 2)`` rounded up to ``align``, with tile starts at multiples of
+    ``align``, and the halo is cut from the output: tiled maps equal untiled ones to float
+    rounding (~1e-6). Memory then depends on the tile, not the image (see ``benchmarks/scorer.py``).
+
+    Inference runs in ``torch.inference_mode()`` and eval mode (no dropout, batch-norm running
+    statistics): the same input gives the same map.
+    """
+
+    def __init__(self, net: nn.Module, *, tile: int = 512, stride: int = 8, device: str | torch.device | None = None):
+        output = getattr(net, "output", None)
+        if output not in ("map", "patch"):
+            raise TypeError(f"Scorer needs a model from nriqa.models (output 'map' or 'patch'), got {type(net).__name__}")
+        if stride < 1:
+            raise ValueError(f"stride must be >= 1, got {stride}")
+        if tile < 0:
+            raise ValueError(f"tile must be >= 0 (0 = never tile), got {tile}")
+        if device is None:
+            device = next(net.parameters()).device
+        self.net = net.to(device).eval()
+        self.device = torch.device(device)
+        self.output = output
+        self.receptive_field = int(net.receptive_field)
+        self.align = int(getattr(net, "align", 1))
+        self.tile = -(-tile // self.align) * self.align if tile else 0
+        self.stride = int(stride)
+        self.quantity = "ssim" if output == "map" else "mae"
+
+    @property
+    def higher_is_better(self) -> bool:
+        """True for an SSIM map (map models), False for an MAE map (the patch model)."""
+        return self.quantity == "ssim"
+
+    @classmethod
+    def from_pretrained(cls, name: str = "fcnn_fast", *, dir: str | os.PathLike | None = None, **kwargs) -> Scorer:
+        """A scorer with the shipped weights ``name`` (:func:`nriqa.pretrained.load_pretrained`)."""
+        from nriqa.pretrained import load_pretrained
+
+        return cls(load_pretrained(name, dir=dir), **kwargs)
+
+    @classmethod
+    def from_checkpoint(cls, path: str | os.PathLike, **kwargs) -> Scorer:
+        """A scorer with the network of a training checkpoint (:func:`nriqa.lit_module.load_net_from_checkpoint`)."""
+        from nriqa.lit_module import load_net_from_checkpoint
+
+        return cls(load_net_from_checkpoint(path), **kwargs)
+
+    def __call__(self, image: np.ndarray | Tensor, *, hdr: bool | None = None) -> ScoreResult:
+        """Score one image or a batch; see the class docstring for shapes and the HDR/LDR rule.
+
+        Returns:
+            :class:`ScoreResult` with the map ``(H, W)`` / ``(B, H, W)`` and the mean-pooled score.
+        """
+        is_numpy = not isinstance(image, Tensor)
+        batch, single = _as_batch(image)
+        out_device = self.device if is_numpy else batch.device
+        b, _, h, w = batch.shape
+        if b == 0:
+            raise ScorerInputError("empty batch: give at least one image")
+        if min(h, w) < self.receptive_field:
+            raise ScorerInputError(
+                f"image of {h}x{w} pixels is smaller than the {self.receptive_field}x{self.receptive_field} "
+                f"receptive field of {type(self.net).__name__}; give at least {self.receptive_field} pixels a side"
+            )
+        with torch.inference_mode():
+            flags = self.detect_hdr(batch, hdr)
+            qmap = self._map(batch, flags)
+            scores = qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
+        qmap = qmap.to(out_device)
+        scores = scores.to(out_device)
+        if is_numpy:
+            qmap, scores = qmap.cpu().numpy(), scores.cpu().numpy()
+        if single:
+            return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0])
+        return ScoreResult(qmap, scores, self.quantity, flags)
+
+    @staticmethod
+    def detect_hdr(batch: Tensor, hdr: bool | None = None) -> list[bool]:
+        """Per image of a ``(B, 3, H, W)`` batch: treat it as linear HDR? (``hdr`` forces the answer.)
+
+        Automatic rule: HDR if any value is above 1 (``+inf`` included, NaN not). Integer inputs
+        arrive here already scaled to [0, 1], so they are LDR.
+        """
+        if hdr is not None:
+            return [bool(hdr)] * batch.shape[0]
+        return [bool((img > 1).any()) for img in batch]
+
+    @staticmethod
+    def prepare(batch: Tensor, flags: list[bool]) -> Tensor:
+        """Sanitise and tone map a float ``(B, 3, h, w)`` batch (or a tile of it) into network input.
+
+        Pixel-wise, so it can be applied per tile. Returns float32 ``(B, 3, h, w)`` in [0, 1]:
+        :func:`nriqa.tonemap.tonemap` for the images flagged HDR, NaN/negative -> 0 and
+        ``+inf``/above 1 -> 1 for the others.
+        """
+        out = torch.empty(batch.shape, dtype=torch.float32, device=batch.device)
+        for i, (img, is_hdr) in enumerate(zip(batch, flags)):
+            img = img if img.dtype == torch.float64 else img.float()
+            if is_hdr:
+                out[i] = tonemap(img)
+            else:
+                out[i] = torch.nan_to_num(img, nan=0.0, posinf=1.0, neginf=0.0).clamp(0.0, 1.0)
+        return out
+
+    def _map(self, batch: Tensor, flags: list[bool]) -> Tensor:
+        """Raw ``(B, 3, H, W)`` batch -> ``(B, H, W)`` predicted map on ``self.device``."""
+        if self.output == "patch":
+            return self._patch_map(self.prepare(batch, flags).to(self.device))
+        h, w = batch.shape[-2:]
+        if not self.tile or (h <= self.tile and w <= self.tile):
+            return self.net(self.prepare(batch, flags).to(self.device))[:, 0].clamp(0.0, 1.0)
+        return self._tiled_map(batch, flags)
+
+    def _tiled_map(self, batch: Tensor, flags: list[bool]) -> Tensor:
+        b, _, h, w = batch.shape
+        t, a = self.tile, self.align
+        half = -(-self.receptive_field // 2)
+        halo = -(-half // a) * a
+        out = torch.empty(b, h, w, dtype=torch.float32, device=self.device)
+        for y0 in range(0, h, t):
+            y1 = min(y0 + t, h)
+            iy0, iy1 = max(0, y0 - halo), min(h, y1 + halo)
+            for x0 in range(0, w, t):
+                x1 = min(x0 + t, w)
+                ix0, ix1 = max(0, x0 - halo), min(w, x1 + halo)
+                tile = self.prepare(batch[:, :, iy0:iy1, ix0:ix1], flags).to(self.device)
+                pred = self.net(tile)[:, 0]
+                out[:, y0:y1, x0:x1] = pred[:, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
+        return out.clamp_(0.0, 1.0)
+
+    def _patch_map(self, x: Tensor) -> Tensor:
+        """Sliding-window map of the patch model: each window's score averaged over its pixels."""
+        b, _, h, w = x.shape
+        p = self.receptive_field
+        ys, xs = _window_starts(h, p, self.stride), _window_starts(w, p, self.stride)
+        xs_t = torch.tensor(xs, device=x.device)
+        # Windows form a product grid, so the per-pixel window count is separable.
+        count = _coverage(ys, p, h, x.device)[:, None] * _coverage(xs, p, w, x.device)[None, :]
+        total = torch.zeros(b, h, w, dtype=torch.float64, device=x.device)
+        chunk = max(1, (self.tile or 512) * 4)
+        for y0 in ys:
+            strip = x[:, :, y0 : y0 + p, :]  # (B, 3, p, W)
+            windows = torch.stack([strip[..., x0 : x0 + p] for x0 in xs], dim=1).flatten(0, 1)  # (B*nx, 3, p, p)
+            scores = torch.cat([self.net(windows[i : i + chunk])[:, 0] for i in range(0, windows.shape[0], chunk)])
+            scores = scores.view(b, len(xs)).double()
+            # Spread each window's score over its columns with a difference array, then cumsum.
+            diff = torch.zeros(b, w + 1, dtype=torch.float64, device=x.device)
+            diff.index_add_(1, xs_t, scores)
+            diff.index_add_(1, xs_t + p, -scores)
+            total[:, y0 : y0 + p, :] += diff[:, :w].cumsum(dim=1)[:, None, :]
+        return (total / count).float()
+
+
+def _window_starts(n: int, p: int, stride: int) -> list[int]:
+    """Window starts ``0, stride, ...`` plus ``n - p`` so the last window touches the border."""
+    starts = list(range(0, n - p + 1, stride))
+    if starts[-1] != n - p:
+        starts.append(n - p)
+    return starts
+
+
+def _coverage(starts: list[int], p: int, n: int, device) -> Tensor:
+    c = torch.zeros(n + 1, dtype=torch.float64, device=device)
+    s = torch.tensor(starts, device=device)
+    c.index_add_(0, s, torch.ones(len(starts), dtype=torch.float64, device=device))
+    c.index_add_(0, s + p, -torch.ones(len(starts), dtype=torch.float64, device=device))
+    return c[:n].cumsum(0)
+
+
+def _as_batch(image: np.ndarray | Tensor) -> tuple[Tensor, bool]:
+    """Any accepted layout -> float ``(B, 3, H, W)`` tensor (not yet sanitised) and whether it was one image."""
+    dtype = image.dtype if isinstance(image, (np.ndarray, Tensor)) else None
+    if isinstance(image, Tensor):
+        t = image.detach()
+        channels_last = False
+    elif isinstance(image, np.ndarray):
+        if image.dtype == np.uint16:  # torch has no general uint16 support
+            image = image.astype(np.int32)
+        try:
+            t = torch.from_numpy(np.ascontiguousarray(image))
+        except TypeError:
+            raise ScorerInputError(f"unsupported numpy dtype {image.dtype}; give float or uint8/uint16 images") from None
+        channels_last = True
+    else:
+        raise ScorerInputError(f"expected a numpy array or torch tensor, got {type(image).__name__}")
+    if t.dtype == torch.bool or t.is_complex():
+        raise ScorerInputError(f"unsupported dtype {dtype}; give float or uint8/uint16 images")
+    if t.ndim == 2:
+        t, single = t[None, None], True
+    elif t.ndim == 3:
+        t, single = (t.permute(2, 0, 1) if channels_last else t)[None], True
+    elif t.ndim == 4:
+        t, single = (t.permute(0, 3, 1, 2) if channels_last else t), False
+    else:
+        raise ScorerInputError(f"expected an image (H,W[,C]) or a batch, got shape {tuple(image.shape)}")
+    c = t.shape[1]
+    layout = "(H, W, C)" if channels_last else "(C, H, W)"
+    if c in (1, 2):  # gray, gray + alpha
+        t = t[:, :1].expand(-1, 3, -1, -1)
+    elif c == 4:
+        t = t[:, :3]
+    elif c != 3:
+        raise ScorerInputError(f"expected 1, 3 or 4 channels in layout {layout}, got shape {tuple(image.shape)}")
+    if not t.is_floating_point():
+        scale = {np.dtype(np.uint8): 255.0, torch.uint8: 255.0, np.dtype(np.uint16): 65535.0}.get(dtype)
+        if scale is None:
+            raise ScorerInputError(f"integer images must be uint8 or uint16, got {dtype}; convert to float")
+        t = t.float() / scale
+    return t, single

@@ -1,0 +1,117 @@
+"""Loss stability study: ``python -m nriqa.stability`` (thesis ch. 5, choice of loss).
+
+Trains every loss in ``stability.losses`` on every model in ``stability.experiments`` with
+``train.py``'s training (default budget: ``schedule=stability``) and writes into
+``stability.out_dir``: ``stability.csv`` / ``stability.md`` -- for each run, whether any step
+produced a NaN/Inf loss (and the first such step), whether any weight ended non-finite, the final
+training loss and the wall time. Each run lives in ``runs/<experiment>-<loss>/``; its
+``result.json`` marks it done, so a rerun skips it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import hydra
+import torch
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, open_dict
+
+from nriqa.atomic import write_text_atomic
+from nriqa.tables import markdown_table, write_csv
+from nriqa.training import set_project_root, train, user_error
+
+RESULT_NAME = "result.json"
+COLUMNS = [
+    "experiment",
+    "loss",
+    "nonfinite_loss",
+    "first_nonfinite_step",
+    "nonfinite_params",
+    "final_train_loss",
+    "final_val_loss",
+    "epochs",
+    "steps",
+    "seconds",
+]
+# Overrides that name the run are set per run; the rest of the command line is forwarded.
+_PER_RUN = ("experiment=", "loss=", "+experiment=", "+loss=")
+
+set_project_root()
+
+
+def run_one(cfg: DictConfig, run_dir: Path) -> dict:
+    """Train one composed config into ``run_dir`` and report its numerical health."""
+    with open_dict(cfg):
+        cfg.paths.output_dir = str(run_dir)
+        # Record the blow-up and keep going would only repeat it; stop at the first one.
+        cfg.model.stop_on_nonfinite = True
+    metrics, objects = train(cfg)
+    model, trainer = objects["model"], objects["trainer"]
+    last = model.history[-1] if model.history else {}
+    result = {
+        "experiment": cfg.experiment_name,
+        "loss": cfg.model.loss.name,
+        "nonfinite_loss": model.nonfinite_steps > 0,
+        "first_nonfinite_step": model.first_nonfinite_step,
+        "nonfinite_params": not all(bool(torch.isfinite(p).all()) for p in model.net.parameters()),
+        "final_train_loss": last.get("train/loss", math.nan),
+        "final_val_loss": last.get("val/loss"),
+        "epochs": len(model.history),
+        "steps": int(trainer.global_step),
+        "seconds": round(objects["seconds"], 1),
+    }
+    write_text_atomic(run_dir / RESULT_NAME, json.dumps(result, indent=1) + "\n")
+    return result
+
+
+def stability(cfg: DictConfig, forwarded: list[str]) -> list[dict]:
+    """Run (or resume) every experiment x loss and write the tables; returns the rows."""
+    out_dir = Path(cfg.stability.out_dir)
+    rows = []
+    for experiment in cfg.stability.experiments:
+        for loss in cfg.stability.losses:
+            run_dir = out_dir / "runs" / f"{experiment}-{loss}"
+            done = run_dir / RESULT_NAME
+            if done.is_file():
+                print(f"{experiment} / {loss}: done, skipped ({done})")
+                rows.append(json.loads(done.read_text(encoding="utf-8")))
+                continue
+            print(f"{experiment} / {loss}: training")
+            run_cfg = hydra.compose("stability", overrides=[*forwarded, f"experiment={experiment}", f"loss={loss}"])
+            rows.append(run_one(run_cfg, run_dir))
+            write_tables(out_dir, rows, cfg.schedule.name)
+    write_tables(out_dir, rows, cfg.schedule.name)
+    print(f"wrote {out_dir / 'stability.md'}")
+    return rows
+
+
+def write_tables(out_dir: Path, rows: list[dict], schedule: str) -> None:
+    write_csv(out_dir / "stability.csv", rows, COLUMNS)
+    text = (
+        f"# Loss stability (schedule {schedule})\n\n"
+        "nonfinite_loss: some training step gave a NaN/Inf loss (training stops there; "
+        "first_nonfinite_step is its global step). nonfinite_params: a weight was NaN/Inf at the "
+        "end. final_*_loss: mean over the last epoch. seconds: wall time of the run.\n\n"
+        + markdown_table(rows, COLUMNS, digits=4)
+    )
+    write_text_atomic(out_dir / "stability.md", text)
+
+
+@hydra.main(config_path="../configs", config_name="stability", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    forwarded = [o for o in HydraConfig.get().overrides.task if not o.startswith(_PER_RUN)]
+    try:
+        stability(cfg, forwarded)
+    except Exception as exc:
+        message = user_error(exc)
+        if message is None:
+            raise
+        sys.exit(f"error: {message}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,46 @@
+"""Result tables written as CSV (for machines) and Markdown (for people), atomically."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import statistics
+
+from nriqa.atomic import write_text_atomic
+
+
+def _cell(value, digits: int) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else f"{value:.{digits}f}"
+    return "" if value is None else str(value)
+
+
+def write_csv(path: str | os.PathLike, rows: list[dict], columns: list[str]) -> None:
+    """Write ``rows`` (dicts; missing keys left empty) with a header of ``columns``."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(path, buf.getvalue())
+
+
+def markdown_table(rows: list[dict], columns: list[str], digits: int = 3) -> str:
+    """A GitHub Markdown table of ``rows``; floats with ``digits`` decimals, booleans as yes/no."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "|".join("---" for _ in columns) + "|"]
+    lines += ["| " + " | ".join(_cell(r.get(c), digits) for c in columns) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def mean_std_row(rows: list[dict], columns: list[str], label_column: str, digits: int = 3) -> dict:
+    """A row of ``mean ± std`` (sample std; 0 for one row) strings over ``columns`` of ``rows``."""
+    out = {label_column: "mean ± std"}
+    for c in columns:
+        values = [float(r[c]) for r in rows if r.get(c) is not None]
+        if values:
+            std = statistics.stdev(values) if len(values) > 1 else 0.0
+            out[c] = f"{statistics.fmean(values):.{digits}f} ± {std:.{digits}f}"
+    return out

@@ -1,0 +1,89 @@
+"""Fit one model as a composed Hydra config describes (the body of ``train.py``).
+
+Kept in the package so that ``nriqa.crossval`` and ``nriqa.stability`` run exactly the same
+training as ``python train.py``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import hydra
+import lightning as L
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from nriqa.lit_module import NRIQAModule
+
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+CONFIG_DIR = PROJECT_ROOT / "configs"
+
+
+def set_project_root() -> None:
+    """Point ``${paths.root_dir}`` (env ``PROJECT_ROOT``) at the repository unless the user set it."""
+    os.environ.setdefault("PROJECT_ROOT", str(PROJECT_ROOT))
+
+
+def user_error(exc: BaseException) -> str | None:
+    """The one-line message of an error a user can cause and fix (bad path, scene, option), else None.
+
+    Hydra wraps errors raised while instantiating in ``InstantiationException``; the cause chain
+    is searched for a ``ValueError`` (``ManifestError``, ``FoldError``, ``ImageReadError``,
+    ``CheckpointError`` and bad option values all are) or a missing file.
+    """
+    seen = exc
+    while seen is not None:
+        if isinstance(seen, (ValueError, FileNotFoundError)) and not isinstance(seen, hydra.errors.InstantiationException):
+            return str(seen)
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+def _instantiate_group(cfg: DictConfig | None) -> list:
+    """Instantiate every ``_target_`` entry of a callbacks/logger group (null or empty -> [])."""
+    return [hydra.utils.instantiate(c) for c in (cfg or {}).values() if c is not None and "_target_" in c]
+
+
+def _fit_without_val(cfg: DictConfig) -> None:
+    # With no held-out scene there is no val/loss: keep the latest checkpoint, watch train/loss.
+    with open_dict(cfg):
+        if cfg.get("callbacks") and cfg.callbacks.get("model_checkpoint"):
+            cfg.callbacks.model_checkpoint.monitor = None
+        if cfg.model.get("scheduler") is not None:
+            cfg.model.scheduler_monitor = "train/loss"
+        if str(cfg.get("optimized_metric") or "").startswith("val/"):
+            cfg.optimized_metric = "train/loss"
+
+
+def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
+    """Seed, build datamodule / model / callbacks / loggers / trainer from ``cfg``, and fit.
+
+    Returns:
+        ``(metrics, objects)``: the last epoch's logged metrics as floats, and
+        ``{"cfg", "datamodule", "model", "trainer", "best_ckpt", "seconds"}``.
+    """
+    if cfg.get("seed") is not None:
+        L.seed_everything(cfg.seed, workers=True)
+    if cfg.data.get("val_scene") is None:
+        _fit_without_val(cfg)
+
+    datamodule = hydra.utils.instantiate(cfg.data)
+    # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
+    datamodule.setup("fit")
+    model: NRIQAModule = hydra.utils.instantiate(cfg.model)
+    callbacks = _instantiate_group(cfg.get("callbacks"))
+    loggers = _instantiate_group(cfg.get("logger"))
+    trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
+    for lg in loggers:
+        lg.log_hyperparams(OmegaConf.to_container(cfg, resolve=True))
+
+    start = time.perf_counter()
+    trainer.fit(model=model, datamodule=datamodule, ckpt_path=cfg.get("ckpt_path"))
+    seconds = time.perf_counter() - start
+
+    metrics = {k: float(v) for k, v in trainer.callback_metrics.items()}
+    ckpt_cb = trainer.checkpoint_callback
+    best = (ckpt_cb.best_model_path or ckpt_cb.last_model_path) if ckpt_cb is not None else ""
+    objects = {"cfg": cfg, "datamodule": datamodule, "model": model, "trainer": trainer, "best_ckpt": best, "seconds": seconds}
+    return metrics, objects

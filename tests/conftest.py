@@ -1,0 +1,49 @@
+"""Shared fixtures: a tiny synthetic dataset in the manifest format (no renderer needed).
+
+Smooth references + Gaussian noise per spp; used by the data, training, cross-validation and
+stability tests.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nriqa.exr import write_exr
+from nriqa.manifest import Record, write_manifest
+
+SCENES = ("alpha", "beta", "gamma")
+SPPS = (1, 4, 16, 64)
+
+
+def make_dataset(root: Path, size: int = 80, scenes=SCENES, spps=SPPS, twins: bool = True) -> Path:
+    """Write ``len(scenes)`` scenes x (1 reference + a noisy test (and twin) per spp) under ``root``."""
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:size, 0:size] / size
+    records = []
+    for si, scene in enumerate(scenes):
+        freq = 2 + si
+        ref = np.stack([np.sin(freq * np.pi * xx + c) * np.cos(freq * np.pi * yy) + 1.2 for c in range(3)], axis=2)
+        ref = (ref * (0.5 + si)).astype(np.float32)
+        ref_path = f"{scene}/reference.exr"
+        write_exr(root / ref_path, ref)
+        common = dict(scene=scene, variant=0, algorithm="path", width=size, height=size, render_seconds=0.1, backend="synthetic")
+        records.append(Record(id=f"{scene}-ref", role="reference", spp=1024, seed=99, path=ref_path, reference=ref_path, **common))
+        for spp in spps:
+            roles = ("test", "twin") if twins else ("test",)
+            for k, role in enumerate(roles):
+                noisy = np.clip(ref + rng.normal(0, 1.5 / np.sqrt(spp), ref.shape) * ref, 0, None).astype(np.float32)
+                path = f"{scene}/path-{spp:04d}-{role}.exr"
+                write_exr(root / path, noisy)
+                twin = f"{scene}-{spp}-{roles[1 - k]}" if twins else None
+                records.append(Record(id=f"{scene}-{spp}-{role}", role=role, spp=spp, seed=k, path=path, reference=ref_path, twin=twin, **common))
+    write_manifest(root, records, {"synthetic": True})
+    return root
+
+
+@pytest.fixture(scope="session")
+def synthetic_dataset(tmp_path_factory) -> Path:
+    """3 scenes (alpha, beta, gamma) x (reference + test and twin at 1, 4, 16, 64 spp), 80x80."""
+    return make_dataset(tmp_path_factory.mktemp("synthetic"))

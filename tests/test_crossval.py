@@ -1,0 +1,82 @@
+"""Cross validation and the loss stability study on the synthetic dataset, with the tiniest budget."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+from nriqa.crossval import RESULT_NAME, crossval
+from nriqa.data.datamodule import NRIQADataModule
+from nriqa.fold_eval import image_level, true_image_score
+from nriqa.models import create_model
+from nriqa.ssim import ssim_map
+from nriqa.stability import stability
+from nriqa.training import CONFIG_DIR
+
+TINY = [
+    "schedule=smoke",
+    "trainer.max_epochs=1",
+    "data.batches_per_epoch=2",
+    "trainer.enable_progress_bar=false",
+    "trainer.enable_model_summary=false",
+    "logger=csv",
+    "++trainer.num_sanity_val_steps=0",
+]
+
+
+def test_crossval_runs_every_fold_and_resumes(synthetic_dataset, tmp_path, capsys):
+    overrides = [f"paths.data_dir={synthetic_dataset}", f"crossval.out_dir={tmp_path}", "experiment=fcnn_fast", *TINY]
+    overrides += ["+model.net.width=8", "crossval.scenes=[alpha,beta]"]
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        cfg = compose("crossval", overrides=overrides)
+    results = crossval(cfg)
+    assert [r["scene"] for r in results] == ["alpha", "beta"]
+    for r in results:
+        assert {"pcc", "srocc", "tau"} <= set(r["val"]) and r["image"]["n"] == 8
+        assert all(row["scene"] == r["scene"] for row in r["images"])
+        assert (tmp_path / "folds" / r["scene"] / "training_curves.png").is_file()
+    rows = list(csv.DictReader((tmp_path / "folds.csv").open()))
+    assert [row["scene"] for row in rows] == ["alpha", "beta"] and float(rows[0]["seconds"]) > 0
+    assert "mean ± std" in (tmp_path / "folds.md").read_text()
+    assert "pooled" in (tmp_path / "images.md").read_text()
+    assert len(list(csv.DictReader((tmp_path / "images.csv").open()))) == 16
+
+    # a rerun skips finished folds (their result files are untouched) and rewrites the same tables
+    stamp = (tmp_path / "folds" / "alpha" / RESULT_NAME).stat().st_mtime_ns
+    table = (tmp_path / "folds.csv").read_text()
+    capsys.readouterr()
+    again = crossval(cfg)
+    out = capsys.readouterr().out
+    assert "fold alpha: done, skipped" in out and "fold beta: done, skipped" in out and "training" not in out
+    assert (tmp_path / "folds" / "alpha" / RESULT_NAME).stat().st_mtime_ns == stamp
+    assert (tmp_path / "folds.csv").read_text() == table
+    assert json.loads((tmp_path / "folds" / "beta" / RESULT_NAME).read_text())["val"] == again[1]["val"]
+
+
+def test_stability_table(synthetic_dataset, tmp_path):
+    forwarded = [f"paths.data_dir={synthetic_dataset}", f"stability.out_dir={tmp_path}", *TINY, "data.batch_size=2"]
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        cfg = compose("stability", overrides=[*forwarded, "stability.experiments=[patch,fcnn_fast]", "stability.losses=[l2]"])
+        rows = stability(cfg, forwarded)
+    assert [(r["experiment"], r["loss"]) for r in rows] == [("patch", "l2"), ("fcnn_fast", "l2")]
+    assert all(r["nonfinite_loss"] is False and r["nonfinite_params"] is False for r in rows)
+    table = list(csv.DictReader((tmp_path / "stability.csv").open()))
+    assert len(table) == 2 and all(float(r["final_train_loss"]) >= 0 for r in table)
+    assert "nonfinite_loss" in (tmp_path / "stability.md").read_text()
+    assert not list(tmp_path.rglob("*.ckpt"))
+
+
+def test_image_level_scores(synthetic_dataset):
+    dm = NRIQADataModule(synthetic_dataset, val_scene="beta", patch_size=32, target="patch_mae", val_patches=4)
+    dm.setup()
+    pair = dm.val_pairs[0]
+    assert true_image_score(pair, "patch_mae") == pytest.approx(float((pair.noisy - pair.ref).abs().mean()))
+    assert true_image_score(pair, "ssim_map") == pytest.approx(float(ssim_map(pair.noisy[None], pair.ref[None]).mean()))
+    for net, target in ((create_model("patch_cnn"), "patch_mae"), (create_model("fcnn_fast", width=8), "ssim_map")):
+        rows, stats = image_level(net.eval(), dm.val_pairs[:3], target, 32)
+        assert [r["id"] for r in rows] == [p.record.id for p in dm.val_pairs[:3]]
+        assert all(math.isfinite(r["predicted"]) for r in rows) and stats["n"] == 3

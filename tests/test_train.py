@@ -1,0 +1,129 @@
+"""train.py and its configs: every experiment runs, checkpoints rebuild the net, errors are one line."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import lightning as L
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from omegaconf import DictConfig
+from torch import nn
+
+from nriqa.data.datamodule import NRIQADataModule
+from nriqa.lit_module import CheckpointError, NRIQAModule, load_net_from_checkpoint
+from nriqa.training import CONFIG_DIR, PROJECT_ROOT, train, user_error
+
+EXPERIMENTS = sorted(p.stem for p in (CONFIG_DIR / "experiment").glob("*.yaml"))
+
+
+def compose_cfg(tmp_path: Path, data_dir: Path, *overrides: str) -> DictConfig:
+    """The real train config, writing into ``tmp_path``, on the smoke schedule, on CPU."""
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        return compose(
+            "train",
+            overrides=[
+                f"paths.data_dir={data_dir}",
+                f"paths.output_dir={tmp_path}",
+                f"paths.log_dir={tmp_path}/logs",
+                "schedule=smoke",
+                "trainer.accelerator=cpu",
+                "trainer.enable_progress_bar=false",
+                "trainer.enable_model_summary=false",
+                *overrides,
+            ],
+        )
+
+
+def test_experiments_exist():
+    assert {"patch", "fcnn", "fcnn11", "fcnn_fast"} <= set(EXPERIMENTS)
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_every_experiment_runs_one_batch(experiment, synthetic_dataset, tmp_path):
+    # 32x32 patches keep the big FCNNs quick on CPU; the configs are otherwise the real ones
+    overrides = (f"experiment={experiment}", "debug=fdr", "data.val_scene=beta", "data.batch_size=1", "data.patch_size=32")
+    cfg = compose_cfg(tmp_path, synthetic_dataset, *overrides)
+    metrics, objects = train(cfg)
+    (row,) = objects["model"].history
+    assert torch.isfinite(torch.tensor(row["train/loss"])) and "val/loss" in row
+    assert objects["model"].net.output == ("patch" if experiment == "patch" else "map")
+
+
+def test_checkpoint_alone_rebuilds_the_net(synthetic_dataset, tmp_path):
+    overrides = ("experiment=fcnn_fast", "data.val_scene=beta", "trainer.max_epochs=2", "+model.net.width=8")
+    cfg = compose_cfg(tmp_path, synthetic_dataset, *overrides)
+    metrics, objects = train(cfg)
+    assert {"train/loss", "val/loss", "val/pcc", "val/srocc", "val/tau", "train/tau"} <= set(metrics)
+    best = Path(objects["best_ckpt"])
+    assert best.is_file() and best.parent == tmp_path / "checkpoints"
+    assert (tmp_path / "checkpoints" / "last.ckpt").is_file()
+    assert (tmp_path / "training_curves.png").stat().st_size > 1000
+    assert (tmp_path / "csv" / "metrics.csv").is_file()
+    assert list((tmp_path / "tensorboard").glob("events.*"))
+    assert len(objects["model"].history) == 2
+
+    net = load_net_from_checkpoint(best)
+    # the trained module, set to the best epoch's weights, must agree exactly with the rebuilt net
+    reference = objects["model"].net
+    state = torch.load(best, weights_only=True)["state_dict"]
+    reference.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
+    x = torch.rand(2, 3, 64, 64)
+    with torch.no_grad():
+        assert torch.equal(net(x), reference.eval()(x))
+    assert not net.training
+
+
+def test_without_val_scene_keeps_the_last_checkpoint(synthetic_dataset, tmp_path):
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "trainer.max_epochs=1", "+model.net.width=8")
+    metrics, objects = train(cfg)
+    assert cfg.optimized_metric == "train/loss" and "train/loss" in metrics and "val/loss" not in metrics
+    assert Path(objects["best_ckpt"]).is_file()
+    assert load_net_from_checkpoint(objects["best_ckpt"]).output == "map"
+
+
+def test_unknown_scene_is_a_one_line_error(synthetic_dataset, tmp_path):
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "data.val_scene=nope")
+    with pytest.raises(ValueError) as info:
+        train(cfg)
+    message = user_error(info.value)
+    assert "alpha, beta, gamma" in message and "\n" not in message
+
+
+def test_missing_dataset_exits_with_one_line(tmp_path):
+    spec = importlib.util.spec_from_file_location("train_script", PROJECT_ROOT / "train.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    cfg = compose_cfg(tmp_path, tmp_path / "none")
+    # __wrapped__ is train.py's main without Hydra's command-line runner (which prints the message)
+    with pytest.raises(SystemExit) as info:
+        script.main.__wrapped__(cfg)
+    message = str(info.value.code)
+    assert message.startswith("error: ") and "no manifest" in message and "\n" not in message
+
+
+def test_bad_checkpoint(tmp_path):
+    with pytest.raises(CheckpointError, match="no such checkpoint"):
+        load_net_from_checkpoint(tmp_path / "missing.ckpt")
+    (tmp_path / "junk.ckpt").write_bytes(b"junk")
+    with pytest.raises(CheckpointError, match="not a readable checkpoint"):
+        load_net_from_checkpoint(tmp_path / "junk.ckpt")
+
+
+class NaNLoss(nn.Module):
+    def forward(self, pred, target):
+        return (pred - target).abs().mean() * float("nan")
+
+
+def test_nonfinite_loss_is_recorded_and_stops(synthetic_dataset, tmp_path):
+    dm = NRIQADataModule(synthetic_dataset, val_scene=None, patch_size=32, target="patch_mae", batch_size=2, batches_per_epoch=4)
+    model = NRIQAModule({"name": "patch_cnn"}, NaNLoss(), optimizer=lambda params: torch.optim.SGD(params, lr=0.1))
+    before = [p.detach().clone() for p in model.net.parameters()]
+    trainer = L.Trainer(max_epochs=3, accelerator="cpu", logger=False, enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False, default_root_dir=tmp_path)
+    trainer.fit(model, dm)
+    assert model.nonfinite_steps == 1 and model.first_nonfinite_step == 0
+    assert len(model.history) == 1 and model.history[0]["train/nonfinite_steps"] == 1
+    assert all(torch.equal(a, b) for a, b in zip(before, model.net.parameters()))
