@@ -355,7 +355,7 @@ def evaluate(data_dir: str | Path, out: str | Path, predictors: list[Predictor],
             for scene in eval_scenes:
                 chosen = [it for it in _figure_items(data.items, scene) if (p.name, it.record.id) in maps]
                 if chosen:
-                    plot_maps(out / f"maps_{p.name}_{scene}.png", data, chosen, maps, p.name)
+                    plot_maps(out / f"maps_{p.name.replace('/', '_')}_{scene}.png", data, chosen, maps, p.name)
     return comparison, per_scene
 
 

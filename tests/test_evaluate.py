@@ -1,0 +1,162 @@
+"""Evaluation: correlations and MAE on constructed predictors, the CLI, and external folders."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from nriqa.baselines import Item, Prediction, Predictor
+from nriqa.evaluate import load_dataset, main, records_of, run_predictors, summarise
+from nriqa.exr import write_exr
+from nriqa.external import ExternalError, import_external, load_display, scan_external
+from nriqa.manifest import read_manifest
+
+
+class Oracle(Predictor):
+    """Predicts the true score and map exactly (optionally as a scaled, inverted raw score)."""
+
+    fitted = False
+
+    def __init__(self, data, name="oracle", scale="ssim", factor=1.0):
+        self.data, self.name, self.scale, self.factor = data, name, scale, factor
+        self.higher_is_better = factor > 0
+
+    def predict(self, item: Item) -> Prediction:
+        return Prediction(self.factor * item.true, self.factor * self.data.true_maps[item.record.id])
+
+
+@pytest.fixture(scope="module")
+def data(synthetic_dataset):
+    root, records = records_of(synthetic_dataset)
+    return load_dataset(root, records)
+
+
+def test_perfect_predictor_gives_correlation_one_and_mae_zero(data):
+    predictors = [Oracle(data), Oracle(data, "inverted_raw", "raw", -5.0)]
+    scenes = ["alpha", "beta", "gamma"]
+    rows, pixels, _ = run_predictors(data, predictors, scenes)
+    comparison, per_scene = summarise(rows, pixels, predictors, scenes)
+    for row in comparison + per_scene:
+        assert row["pcc"] == pytest.approx(1.0, abs=1e-9) and row["srocc"] == pytest.approx(1.0, abs=1e-6)
+        assert row["tau"] == pytest.approx(1.0) and row["pixel_pcc"] == pytest.approx(1.0, abs=1e-6)
+    assert comparison[0]["mae"] == pytest.approx(0.0, abs=1e-12)
+    assert comparison[1]["mae"] < 0.05  # logistic map fitted on the other scenes
+
+
+def test_cli_writes_tables_and_figures(synthetic_dataset, tmp_path):
+    main([str(synthetic_dataset), "--out", str(tmp_path), "--baselines", "all", "--scenes", "beta"])
+    for name in ("comparison.csv", "comparison.md", "per_scene.md", "images.csv", "scatter.png", "maps_dual_buffer_beta.png"):
+        assert (tmp_path / name).is_file(), name
+    table = (tmp_path / "comparison.md").read_text()
+    for name in ("wavelet_sigma", "laplacian", "niqe", "brisque", "dual_buffer"):
+        assert f"| {name} |" in table
+    assert "alpha" not in (tmp_path / "per_scene.md").read_text().split("\n", 3)[-1]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--scenes", "nowhere"], "unknown scene(s) nowhere"),
+    (["--baselines", "nope"], "unknown baseline 'nope'"),
+    (["--baselines", "none"], "nothing to evaluate"),
+])
+def test_cli_user_errors_are_one_line(synthetic_dataset, tmp_path, capsys, args, message):
+    with pytest.raises(SystemExit) as exc:
+        main([str(synthetic_dataset), "--out", str(tmp_path), *args])
+    assert str(exc.value).startswith("error: ") and message in str(exc.value) and "\n" not in str(exc.value)
+
+
+# --- external folders -----------------------------------------------------------------------
+
+def _png(path: Path, value: float, noise: float, seed: int, size: int = 32) -> None:
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size] / size
+    img = value * (0.6 + 0.3 * np.sin(6 * xx)[..., None] * np.cos(5 * yy)[..., None]) + rng.normal(0, noise, (size, size, 3))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray((np.clip(img, 0, 1) * 255).round().astype(np.uint8)).save(path)
+
+
+@pytest.fixture()
+def external(tmp_path) -> Path:
+    root = tmp_path / "renders"
+    for k, scene in enumerate(("room", "car")):
+        _png(root / scene / "reference.png", 0.8, 0.0, 0)
+        for spp in (1, 4, 16):
+            _png(root / scene / f"bdpt - {spp}.png", 0.8, 0.2 / math.sqrt(spp), 10 * k + spp)
+    return root
+
+
+def test_external_folder_parses_names_and_references(external):
+    records = scan_external(external)
+    refs = [r for r in records if r.role == "reference"]
+    tests = sorted((r.scene, r.algorithm, r.spp) for r in records if r.role == "test")
+    assert sorted(r.path for r in refs) == ["car/reference.png", "room/reference.png"]
+    assert tests == [(s, "bdpt", n) for s in ("car", "room") for n in (1, 4, 16)]
+    assert all(r.reference == f"{r.scene}/reference.png" and r.width == 32 and r.twin is None for r in records)
+
+
+def test_external_highest_spp_reference_and_seed_twins(tmp_path):
+    root = tmp_path / "r"
+    for spp in (2, 8, 1024):
+        for seed in (1, 2):
+            _png(root / "s" / f"pt - {spp} - {seed}.png", 0.5, 0.1, spp + seed)
+    records = scan_external(root, pattern="{scene}/{algorithm} - {spp} - {seed}", reference="highest:pt")
+    ref = [r for r in records if r.role == "reference"][0]
+    assert ref.path.startswith("s/pt - 1024")
+    tests = [r for r in records if r.role == "test"]
+    assert sorted(r.spp for r in tests) == [2, 8, 1024]
+    # seeds pair up as twins; the reference's partner at 1024 spp stays as a test image without twin
+    assert [bool(r.twin) for r in sorted(tests, key=lambda r: r.spp)] == [True, True, False]
+    assert not any(r.path == ref.path for r in records if r.role != "reference")
+
+
+def test_external_png_is_display_referred_and_exr_tone_mapped(tmp_path):
+    Image.fromarray(np.full((8, 8, 3), 128, np.uint8)).save(tmp_path / "a.png")
+    assert float(load_display(tmp_path / "a.png").mean()) == pytest.approx(128 / 255)
+    write_exr(tmp_path / "b.exr", np.ones((8, 8, 3), np.float32))
+    assert float(load_display(tmp_path / "b.exr").mean()) == pytest.approx(0.5 ** (1 / 2.2), abs=1e-4)
+
+
+@pytest.mark.parametrize("setup, message", [
+    (lambda r: _png(r / "room" / "bdpt_16.png", 0.5, 0.1, 1), "name does not match pattern"),
+    (lambda r: (r / "car" / "reference.png").unlink(), "scene 'car' has no reference matching 'car/reference.*'"),
+    (lambda r: _png(r / "car" / "reference.jpg", 0.5, 0.0, 1), "matches 2 files"),
+])
+def test_external_errors(external, setup, message):
+    setup(external)
+    with pytest.raises(ExternalError, match=message.replace("(", r"\(").replace("*", r"\*").replace(".", r"\.")):
+        scan_external(external)
+
+
+def test_external_manifest_and_evaluation(external, tmp_path):
+    out = tmp_path / "ds"
+    import_external(external, out)
+    records, meta = read_manifest(out)
+    assert meta["pattern"] == "{scene}/{algorithm} - {spp}" and len(records) == 8
+    assert (out / records[0].path).resolve().is_file()
+    main([str(external), "--out", str(tmp_path / "ev"), "--baselines", "wavelet_sigma,dual_buffer", "--no-figures"])
+    table = (tmp_path / "ev" / "comparison.md").read_text()
+    assert "| wavelet_sigma | raw |  | 6 |" in table and "| dual_buffer | ssim |  | 0 |" in table
+
+
+def test_learned_scorer_as_predictor(data):
+    from nriqa.evaluate import ScorerPredictor
+    from nriqa.models import create_model
+    from nriqa.scorer import Scorer
+
+    torch.manual_seed(0)
+    p = ScorerPredictor("fcnn_fast_random", Scorer(create_model("fcnn_fast")))
+    assert p.scale == "ssim" and p.higher_is_better
+    rows, pixels, maps = run_predictors(data, [p], ["alpha"])
+    assert len(rows) == 4 and all(0.0 <= r["predicted"] <= 1.0 for r in rows)
+    assert ("fcnn_fast_random", "alpha") in pixels and next(iter(maps.values())).shape == (80, 80)
+
+
+def test_checkpoint_names_are_short_and_distinct():
+    from nriqa.evaluate import checkpoint_names
+
+    assert checkpoint_names(["runs/a/checkpoints/last.ckpt", "runs/b/checkpoints/last.ckpt"]) == ["a/last", "b/last"]
+    assert checkpoint_names(["x/best.ckpt"]) == ["best"]
