@@ -203,6 +203,23 @@ def _sensor_index(loaded) -> dict[tuple[int, int, int, int], int]:
     return index
 
 
+def _expected_gain(qmap: np.ndarray, count: np.ndarray, tiles, k: int, higher_is_better: bool) -> np.ndarray:
+    """Per tile, the predicted error times the share of noise ``k`` more samples would remove.
+
+    Error is ``1 - SSIM`` (or the MAE); Monte Carlo noise falls as ``1/sqrt(n)``, so going from
+    ``n`` to ``n + k`` samples removes the fraction ``1 - sqrt(n / (n + k))`` of it. Ranking by
+    this rather than by the error alone keeps the loop from pouring samples into a tile that is
+    hard but already well sampled.
+    """
+    gains = []
+    for x, y, w, h in tiles:
+        q = float(qmap[y : y + h, x : x + w].mean())
+        n = float(count[y : y + h, x : x + w].mean())
+        error = 1.0 - q if higher_is_better else q
+        gains.append(max(error, 0.0) * (1.0 - np.sqrt(n / (n + k))))
+    return np.array(gains)
+
+
 def render_adaptive(
     scene: Mapping,
     scorer: Scorer,
@@ -220,9 +237,10 @@ def render_adaptive(
     """Adaptive sampling: spend samples on the tiles the predicted map rates worst.
 
     A uniform pass of ``initial_spp`` samples, then per step: score the current mean, split the
-    map into ``tile`` x ``tile`` tiles, rank them by their mean predicted quality (lowest SSIM, or
-    highest MAE for the patch model) and render ``spp_per_step`` more samples in the worst
-    ``fraction`` of tiles (at least one), each through a film crop (``crop_offset_x/y``,
+    map into ``tile`` x ``tile`` tiles, rank them by expected gain -- mean predicted error
+    (``1 - SSIM``, or the patch model's MAE) times ``1 - sqrt(n / (n + k))``, the share of the
+    noise ``k = spp_per_step`` more samples remove at ``n`` samples -- and render ``k`` more samples
+    in the best ``fraction`` of tiles (at least one), each through a film crop (``crop_offset_x/y``,
     ``crop_width/height``): the scene is loaded once with one extra sensor per tile, a copy of
     ``scene["sensor"]`` with its film cropped, and every render call gets its own seed. Every
     pixel keeps its sample count ``n`` and the mean of its samples:
@@ -288,9 +306,7 @@ def render_adaptive(
         if "stop" in row:
             row["spp_map"] = count
             return mean, clock.log
-        qmap = result.map
-        quality = np.array([qmap[y : y + h, x : x + w].mean() for x, y, w, h in tiles])
-        order = np.argsort(quality if scorer.higher_is_better else -quality, kind="stable")
+        order = np.argsort(-_expected_gain(result.map, count, tiles, spp_per_step, scorer.higher_is_better), kind="stable")
         t0 = time.perf_counter()
         for i in order[:n_refine]:
             x, y, w, h = tiles[i]

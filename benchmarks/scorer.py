@@ -1,0 +1,325 @@
+"""Scorer benchmark: throughput, peak memory of tiling, accuracy (with weights), render loops.
+
+    python benchmarks/scorer.py --out reports/scorer [--size 512 --patch-size 128 --repeats 3]
+                                [--data data/default --val-scene cornell --checkpoint-dir DIR]
+                                [--scenes cornell,caustic,door --resolution 64 --budget 20]
+                                [--skip throughput,memory,accuracy,render]
+
+Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as PNGs beside it:
+
+1. **throughput** -- Mpix/s of :class:`nriqa.scorer.Scorer` (tone map + forward + pooling) for
+   every registered model on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
+   on a ``patch-size`` square (its cost grows with 1/stride^2). Time only: untrained weights.
+2. **memory** -- peak resident memory of scoring a 4096x4096 HDR image with ``fcnn_fast``, tiled
+   (512) and untiled, each in a fresh subprocess: peak RSS (``resource.getrusage``) and its rise
+   over the RSS just before scoring (torch, model and the input already in memory).
+3. **accuracy** -- with ``--data`` and weights (shipped weights, or ``*.ckpt`` under
+   ``--checkpoint-dir``): on the test images of ``--val-scene``, image-level SROCC of the pooled
+   prediction against the true mean SSIM (MAE for the patch model) and pixel PCC of the map against
+   the true SSIM map. Without weights it prints "no weights".
+4. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
+   reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
+   (no scorer), early stopping at a predicted target, and adaptive sampling, with the scorer's
+   share of the time; plus adaptive sampling driven by the true SSIM map (an oracle: the headroom
+   a perfect predictor would have). Uses the shipped ``fcnn_fast`` weights, else ``--render-checkpoint``, else an
+   untrained ``fcnn_fast`` (then only the timings mean anything, and the table says so).
+   The scorer is run on every step; adaptive steps spend as many samples as uniform ones.
+
+Run with ``--threads 1`` on a small shared CPU: at these image sizes one torch thread is much
+faster than two that compete with Mitsuba's threads and other processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from nriqa.models import create_model, list_models  # noqa: E402
+from nriqa.scorer import Scorer  # noqa: E402
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def md_table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def timed(fn, repeats: int) -> float:
+    fn()  # warm-up: oneDNN picks kernels per shape
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def throughput(args) -> str:
+    rng = np.random.default_rng(0)
+    rows = []
+    for name in list_models():
+        torch.manual_seed(0)
+        scorer = Scorer(create_model(name), stride=8)
+        size = args.patch_size if scorer.output == "patch" else args.size
+        img = (rng.random((size, size, 3)) * 4).astype(np.float32)
+        strides = (1, 4, 8, 16) if scorer.output == "patch" else (None,)
+        for stride in strides:
+            if stride is not None:
+                scorer.stride = stride
+            t = timed(lambda: scorer(img, hdr=True), args.repeats if stride != 1 else 1)
+            rows.append([name, size, stride or "-", f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
+            print(f"  throughput {name} stride={stride}: {t:.3f} s", file=sys.stderr)
+    return md_table(["model", "side (px)", "stride", "ms / image", "Mpix/s"], rows)
+
+
+_MEMORY_CHILD = r"""
+import os, resource, sys, time, numpy as np, torch
+from nriqa.models import create_model
+from nriqa.scorer import Scorer
+def rss_mib():  # current resident set, not the peak
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+name, side, tile = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+torch.manual_seed(0)
+scorer = Scorer(create_model(name), tile=tile)
+img = np.empty((side, side, 3), np.float32)  # filled in place: no temporary copies to inflate the peak
+np.random.default_rng(0).random(out=img, dtype=np.float32)
+img *= 4
+scorer(img[:64, :64], hdr=True)
+before = rss_mib()
+t0 = time.perf_counter()
+res = scorer(img, hdr=True)
+seconds = time.perf_counter() - t0
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(before, peak, seconds, res.score)
+"""
+
+
+def memory(args) -> str:
+    rows = []
+    for name, tile in [("fcnn_fast", 512), ("fcnn_fast", 0), *([("fcnn", 512)] if args.memory_fcnn else [])]:
+        proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, name, str(args.memory_side), str(tile)],
+                              cwd=REPO, capture_output=True, text=True)
+        if proc.returncode != 0:
+            rows.append([name, tile or "untiled", "failed", (proc.stderr.strip().splitlines() or ["?"])[-1], "", ""])
+            continue
+        before, after, seconds, score = map(float, proc.stdout.split())
+        rows.append([name, tile or "untiled", f"{after:.0f}", f"{after - before:.0f}", f"{seconds:.1f}", f"{score:.4f}"])
+        print(f"  memory {name} tile={tile}: peak {after:.0f} MiB ({after - before:.0f} for scoring), {seconds:.1f} s", file=sys.stderr)
+    side = args.memory_side
+    note = (f"{side}x{side} float32 HDR input ({side * side * 12 / 2**20:.0f} MiB); peak RSS of the process, and the "
+            "rise over the RSS just before scoring (input, model and torch already in memory).\n\n")
+    return note + md_table(["model", "tile", "peak RSS (MiB)", "added by scoring (MiB)", "seconds", "score"], rows)
+
+
+def find_scorers(args) -> dict[str, Scorer]:
+    from nriqa.pretrained import list_pretrained
+
+    found = {f"shipped:{n}": Scorer.from_pretrained(n) for n in list_pretrained()}
+    if args.checkpoint_dir:
+        for ckpt in sorted(Path(args.checkpoint_dir).rglob("*.ckpt")):
+            found[str(ckpt.relative_to(args.checkpoint_dir))] = Scorer.from_checkpoint(ckpt)
+    return found
+
+
+def accuracy(args) -> str:
+    from nriqa.correlation import pcc, srocc
+    from nriqa.data.images import load_ldr
+    from nriqa.manifest import read_manifest
+    from nriqa.ssim import ssim_map
+
+    if not args.data:
+        return "no data: pass --data DIR --val-scene NAME"
+    scorers = find_scorers(args)
+    if not scorers:
+        return "no weights (no shipped weights and no *.ckpt under --checkpoint-dir)"
+    try:
+        records, _ = read_manifest(args.data)
+    except ValueError as exc:  # ManifestError: one line
+        return f"no data: {exc}"
+    tests = [r for r in records if r.role == "test" and r.scene == args.val_scene]
+    if not tests:
+        return f"no test images of scene {args.val_scene!r} in {args.data}"
+    refs: dict[str, torch.Tensor] = {}
+    truth_maps, truth_mae, noisy = [], [], []
+    for r in tests:
+        x = load_ldr(Path(args.data) / r.path)[None]
+        y = refs.setdefault(r.reference, load_ldr(Path(args.data) / r.reference)[None])
+        truth_maps.append(ssim_map(x, y)[0, 0])
+        truth_mae.append(float((x - y).abs().mean()))
+        noisy.append(x[0].permute(1, 2, 0).numpy())  # already tone-mapped: score as LDR
+    rows = []
+    for label, scorer in scorers.items():
+        preds = [scorer(img, hdr=False) for img in noisy]
+        pooled = torch.tensor([p.score for p in preds])
+        if scorer.quantity == "ssim":
+            truth = torch.tensor([float(m.mean()) for m in truth_maps])
+            pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
+            pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
+            pixel = f"{pcc(pix_p, pix_t):.3f}"
+        else:
+            truth, pixel = torch.tensor(truth_mae), "-"
+        rows.append([label, scorer.quantity, len(tests), f"{srocc(pooled, truth):.3f}", pixel])
+    return f"scene {args.val_scene}, {len(tests)} test images of {args.data}\n\n" + md_table(
+        ["weights", "predicts", "images", "image SROCC", "pixel PCC (SSIM map)"], rows)
+
+
+def render_scorer(args) -> tuple[Scorer, str]:
+    from nriqa.pretrained import list_pretrained
+
+    if "fcnn_fast" in list_pretrained():
+        return Scorer.from_pretrained("fcnn_fast"), "shipped fcnn_fast"
+    if args.render_checkpoint:
+        return Scorer.from_checkpoint(args.render_checkpoint), str(args.render_checkpoint)
+    torch.manual_seed(0)
+    return Scorer(create_model("fcnn_fast")), "UNTRAINED fcnn_fast (timings only; early stopping and tile choice are meaningless)"
+
+
+class OracleScorer:
+    """The true SSIM map against the reference, in the Scorer's interface: the best any predictor
+    could do, so adaptive sampling's headroom shows even before trained weights exist."""
+
+    higher_is_better = True
+    quantity = "ssim"
+
+    def __init__(self, reference: np.ndarray):
+        from nriqa.tonemap import tonemap
+
+        self.ref = tonemap(torch.from_numpy(reference).permute(2, 0, 1)[None])
+
+    def __call__(self, image, *, hdr=None):
+        from nriqa.scorer import ScoreResult
+        from nriqa.ssim import ssim_map
+        from nriqa.tonemap import tonemap
+
+        m = ssim_map(tonemap(torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1)[None]), self.ref)[0, 0].numpy()
+        return ScoreResult(m, float(m.mean()), "ssim", True)
+
+
+def render(args, out: Path) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import mitsuba as mi
+
+    from data_gen.plan import ImageTask, Job
+    from data_gen.render import scene_dict
+    from data_gen.scenes import get_scene
+    from nriqa.render_loop import ensure_variant, render_adaptive, render_until
+
+    variant = ensure_variant(args.backend)
+    scorer, label = render_scorer(args)
+    rows = []
+    scenes = args.scenes.split(",")
+    # Same samples per step as a uniform step, spent on the chosen tiles only.
+    adaptive_spp = max(1, round(args.spp_per_step / args.fraction))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
+    for ax, name in zip(axes[0], scenes):
+        spec = get_scene(name)
+        job = Job(name, 0, 1234, spec.reference_algorithm, (args.resolution, args.resolution), spec.max_depth, ())
+        scene = scene_dict(job, ImageTask("bench", "test", args.spp_per_step, 1, "b.exr", "r.exr"))
+        t0 = time.perf_counter()
+        reference = np.array(mi.render(mi.load_dict(scene), spp=args.reference_spp, seed=987654), dtype=np.float32)[..., :3]
+        print(f"  render {name}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        runs = {
+            "uniform": render_until(scene, None, None, args.budget, args.spp_per_step, reference, seed=1)[1],
+            "early stop": render_until(scene, scorer, args.target, args.budget, args.spp_per_step, reference, seed=1)[1],
+            "adaptive": render_adaptive(scene, scorer, time_budget_s=args.budget, initial_spp=args.spp_per_step,
+                                        spp_per_step=adaptive_spp, tile=args.tile, fraction=args.fraction,
+                                        reference=reference, seed=1)[1],
+            "adaptive (oracle map)": render_adaptive(scene, OracleScorer(reference), time_budget_s=args.budget,
+                                                     initial_spp=args.spp_per_step, spp_per_step=adaptive_spp, tile=args.tile,
+                                                     fraction=args.fraction, reference=reference, seed=1)[1],
+        }
+        for method, log in runs.items():
+            last = log[-1]
+            share = last["score_seconds"] / last["seconds"] if last["seconds"] else 0.0
+            pred = f"{last['predicted']:.3f}" if last["predicted"] is not None else "-"
+            rows.append([name, method, len(log), f"{last['seconds']:.2f}", f"{last['spp']:.1f}", f"{last['true']:.4f}",
+                         pred, f"{100 * share:.1f} %", f"{last['setup_seconds']:.1f}", last["stop"]])
+            ax.plot([r["seconds"] for r in log], [r["true"] for r in log], marker="." if method != "uniform" else None, label=method)
+            slug = method.replace(" (oracle map)", "_oracle").replace(" ", "_")
+            (out / f"render_{name}_{slug}.json").write_text(
+                json.dumps([{k: v for k, v in r.items() if k != "spp_map"} for r in log], indent=1))
+        ax.set(title=f"{name} {args.resolution}x{args.resolution}", xlabel="seconds (render + scoring)", ylabel="true mean SSIM",
+               xscale="log")
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "render_loops.png", dpi=100)
+    plt.close(fig)
+    note = (f"Mitsuba variant {variant}; scorer: {label}; {args.spp_per_step} spp per step; time budget {args.budget} s; "
+            f"early-stop target {args.target}; adaptive: {args.tile}px tiles, worst {args.fraction:.0%} get {adaptive_spp} spp per step; "
+            f"reference {args.reference_spp} spp. 'setup' is the untimed JIT warm-up. Plot: render_loops.png\n\n")
+    return note + md_table(["scene", "method", "steps", "seconds", "mean spp", "true SSIM", "predicted", "scorer share",
+                            "setup (s)", "stop"], rows)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("reports/scorer"))
+    ap.add_argument("--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,render")
+    ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--patch-size", type=int, default=128)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--memory-side", type=int, default=4096)
+    ap.add_argument("--memory-fcnn", action="store_true", help="also measure fcnn (slow: ~2M multiply-adds per pixel)")
+    ap.add_argument("--data", type=Path)
+    ap.add_argument("--val-scene", default="cornell")
+    ap.add_argument("--checkpoint-dir", type=Path)
+    ap.add_argument("--scenes", default="cornell,caustic,door")
+    ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("--reference-spp", type=int, default=4096)
+    ap.add_argument("--budget", type=float, default=5.0, help="seconds per render loop")
+    ap.add_argument("--spp-per-step", type=int, default=4)
+    ap.add_argument("--target", type=float, default=0.9, help="predicted SSIM at which early stopping stops")
+    ap.add_argument("--tile", type=int, default=16)
+    ap.add_argument("--fraction", type=float, default=0.25)
+    ap.add_argument("--backend", default="auto")
+    ap.add_argument("--render-checkpoint", type=Path)
+    args = ap.parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    args.out.mkdir(parents=True, exist_ok=True)
+    skip = set(filter(None, args.skip.split(",")))
+    parts = [f"# Scorer benchmark\n\n{cpu_name()}, {torch.get_num_threads()} torch threads, torch {torch.__version__}, "
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n"]
+    sections = {"throughput": lambda: throughput(args), "memory": lambda: memory(args),
+                "accuracy": lambda: accuracy(args), "render": lambda: render(args, args.out)}
+    for name, fn in sections.items():
+        if name in skip:
+            continue
+        print(f"{name} ...", file=sys.stderr)
+        text = f"## {name}\n\n{fn()}\n"
+        print(text, flush=True)
+        parts.append(text)
+    (args.out / "scorer.md").write_text("\n".join(parts), encoding="utf-8")
+    print(f"wrote {args.out / 'scorer.md'}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

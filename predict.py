@@ -1,0 +1,247 @@
+"""Score rendered images without their reference: a quality map and a pooled score per file.
+
+    python predict.py render.exr more/*.png [--model fcnn_fast | --checkpoint best.ckpt] [--out predictions]
+                      [--json] [--hdr | --ldr] [--tile 512] [--stride 8] [--threads N] [--no-figures]
+
+Per input, written atomically into ``--out``: ``<stem>_map.exr`` (the predicted map as float32,
+replicated to RGB) and ``<stem>_figure.png`` (the image the network saw | the map with a colour
+bar). Prints ``path score`` per image, or with ``--json`` one JSON object per line (path, score,
+quantity, height, width, hdr, seconds, map, figure). Map models predict SSIM (higher is better),
+the patch model MAE (lower is better).
+
+Inputs: EXR (RGB, RGBA, luminance-only; half or float; scanline or tiled) is linear HDR and is
+tone-mapped; PNG/JPEG (8 or 16 bit, gray, RGB, with or without alpha) is display-referred LDR
+scaled to [0, 1]. ``--hdr``/``--ldr`` override the choice. Bad pixels (NaN, Inf, negative, huge)
+follow the policy of :class:`nriqa.scorer.Scorer`. A file that cannot be scored (missing, a
+folder, truncated, not an image, smaller than the model's receptive field, deep or multi-part EXR)
+gets one line on stderr and the others are still scored; the exit code is then 1 (2 for a usage
+or model error).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+EXR_SUFFIXES = {".exr"}
+LDR_SUFFIXES = {".png", ".jpg", ".jpeg"}
+PROG = "predict.py"
+
+
+def read_image(path: str | os.PathLike) -> tuple[np.ndarray, bool]:
+    """Read an image file as ``(H, W, 3)`` float32 and whether its type is linear HDR.
+
+    EXR via :func:`nriqa.exr.read_exr` (HDR); PNG/JPEG via ``skimage.io`` (LDR), 8/16-bit scaled
+    to [0, 1], gray replicated to RGB, alpha dropped.
+
+    Raises:
+        nriqa.exr.ImageReadError: missing file, folder, unsupported type, unreadable content.
+    """
+    from nriqa.exr import ImageReadError, read_exr
+
+    path = Path(path)
+    if path.is_dir():
+        raise ImageReadError(f"{path}: is a directory; pass image files (e.g. {path}/*.exr)")
+    if not path.exists():
+        raise ImageReadError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix in EXR_SUFFIXES:
+        return read_exr(path), True
+    if suffix not in LDR_SUFFIXES:
+        raise ImageReadError(f"{path}: unsupported file type {suffix or '(none)'!r}; give .exr, .png or .jpg")
+    import skimage.io
+
+    try:
+        img = np.asarray(skimage.io.imread(path))
+    except Exception as exc:  # PIL/imageio raise many types for truncated or foreign files
+        first = (str(exc).strip().splitlines() or [""])[0]  # imageio appends install hints on further lines
+        raise ImageReadError(f"{path}: not a readable {suffix[1:].upper()} image ({type(exc).__name__}: {first})") from None
+    if img.dtype == np.uint8:
+        img = img.astype(np.float32) / 255.0
+    elif img.dtype == np.uint16:
+        img = img.astype(np.float32) / 65535.0
+    elif img.dtype == bool or np.issubdtype(img.dtype, np.floating):
+        img = img.astype(np.float32)
+    else:
+        raise ImageReadError(f"{path}: unsupported pixel type {img.dtype}; save as 8- or 16-bit")
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or img.shape[2] not in (1, 2, 3, 4):
+        raise ImageReadError(f"{path}: unexpected image shape {img.shape}")
+    if img.shape[2] <= 2:  # gray, gray + alpha
+        img = np.repeat(img[..., :1], 3, axis=2)
+    return np.ascontiguousarray(img[..., :3]), False
+
+
+def write_figure(path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, quantity: str, title: str) -> None:
+    """Save ``image | map`` side by side with a colour bar as a PNG, atomically.
+
+    ``shown`` is the ``(H, W, 3)`` LDR image the network saw; ``qmap`` the ``(H, W)`` map.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from nriqa.atomic import atomic_path
+
+    step = max(1, max(qmap.shape) // 1024)  # a figure needs no more than ~1k pixels a side
+    shown, qmap = shown[::step, ::step], qmap[::step, ::step]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.4), constrained_layout=True)
+    axes[0].imshow(np.clip(shown, 0, 1), interpolation="nearest")
+    axes[0].set_title(title, fontsize=9)
+    vmax = 1.0 if quantity == "ssim" else max(float(qmap.max()), 1e-6)
+    im = axes[1].imshow(qmap, cmap="viridis", vmin=0.0, vmax=vmax, interpolation="nearest")
+    better = "higher is better" if quantity == "ssim" else "lower is better"
+    axes[1].set_title(f"predicted {quantity.upper()} map, mean {score:.4f} ({better})", fontsize=9)
+    for ax in axes:
+        ax.set_axis_off()
+    fig.colorbar(im, ax=axes[1], fraction=0.046)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+
+
+class Progress:
+    """A one-line progress bar on stderr (only on a terminal, only for several files)."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.enabled, self.done, self.start = total, enabled, 0, time.perf_counter()
+
+    def clear(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\r\033[K")
+
+    def step(self, name: str) -> None:
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        fill = width * self.done // self.total
+        eta = (time.perf_counter() - self.start) / self.done * (self.total - self.done)
+        sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} eta {eta:4.0f}s {name[:40]}")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def _unique_stem(stem: str, used: set[str]) -> str:
+    name, k = stem, 1
+    while name in used:
+        k += 1
+        name = f"{stem}_{k}"
+    used.add(name)
+    return name
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0])
+    ap.add_argument("images", nargs="+", metavar="IMAGE", help=".exr (linear HDR) or .png/.jpg (LDR) files")
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument("--model", default="fcnn_fast", help="shipped weights name or a path to a .pt (default fcnn_fast)")
+    src.add_argument("--checkpoint", type=Path, help="a training checkpoint (.ckpt) instead of shipped weights")
+    ap.add_argument("--weights-dir", type=Path, default=None, help="folder of shipped weights (default: the package's)")
+    ap.add_argument("--out", type=Path, default=Path("predictions"), help="output folder (default predictions/)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object per image instead of 'path score'")
+    rng = ap.add_mutually_exclusive_group()
+    rng.add_argument("--hdr", dest="hdr", action="store_const", const=True, help="treat every input as linear HDR (tone map it)")
+    rng.add_argument("--ldr", dest="hdr", action="store_const", const=False, help="treat every input as display-referred LDR")
+    ap.add_argument("--tile", type=int, default=512, help="tile side for large images (0: never tile)")
+    ap.add_argument("--stride", type=int, default=8, help="window stride of the patch model")
+    ap.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's choice; 1 is faster for small images on a busy CPU)")
+    ap.add_argument("--no-figures", action="store_true", help="write only the map EXR")
+    ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto", help="progress bar on stderr (auto: terminal and >1 file)")
+    return ap
+
+
+def error_line(msg: str) -> None:
+    """One line on stderr, whatever the message holds."""
+    print(f"{PROG}: error: {' '.join(msg.split())}", file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code (0 ok, 1 some file failed, 2 usage/model error)."""
+    args = build_parser().parse_args(argv)
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+    from nriqa.exr import ImageReadError, write_exr
+    from nriqa.scorer import Scorer, ScorerInputError
+
+    try:
+        opts = dict(tile=args.tile, stride=args.stride)
+        if args.checkpoint is not None:
+            scorer = Scorer.from_checkpoint(args.checkpoint, **opts)
+        else:
+            scorer = Scorer.from_pretrained(args.model, dir=args.weights_dir, **opts)
+    except ValueError as exc:  # PretrainedError, CheckpointError: one line each
+        error_line(str(exc))
+        return 2
+
+    progress = Progress(len(args.images), args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty() and len(args.images) > 1))
+    used: set[str] = set()
+    failures = 0
+    for name in args.images:
+        start = time.perf_counter()
+        try:
+            image, file_hdr = read_image(name)
+            hdr = file_hdr if args.hdr is None else args.hdr
+            t0 = time.perf_counter()
+            result = scorer(image, hdr=hdr)
+            seconds = time.perf_counter() - t0
+            stem = _unique_stem(Path(name).stem, used)
+            map_path = args.out / f"{stem}_map.exr"
+            write_exr(map_path, np.repeat(result.map[..., None], 3, axis=2))
+            fig_path = None
+            if not args.no_figures:
+                with torch.inference_mode():
+                    t = torch.from_numpy(image).permute(2, 0, 1)[None]
+                    shown = scorer.prepare(t, [hdr])[0].permute(1, 2, 0).numpy()
+                fig_path = args.out / f"{stem}_figure.png"
+                write_figure(fig_path, shown, result.map, result.score, result.quantity, f"{name} ({'HDR, tone-mapped' if hdr else 'LDR'})")
+        except (ImageReadError, ScorerInputError, OSError) as exc:
+            failures += 1
+            progress.clear()
+            error_line(str(exc) if not isinstance(exc, ScorerInputError) else f"{name}: {exc}")
+            progress.step(Path(name).name)
+            continue
+        except Exception as exc:  # one bad file must not stop the others
+            failures += 1
+            progress.clear()
+            error_line(f"{name}: {type(exc).__name__}: {exc}")
+            progress.step(Path(name).name)
+            continue
+        progress.clear()
+        if args.json:
+            row = {
+                "path": str(name),
+                "score": round(result.score, 6),
+                "quantity": result.quantity,
+                "height": int(image.shape[0]),
+                "width": int(image.shape[1]),
+                "hdr": hdr,
+                "seconds": round(seconds, 4),
+                "total_seconds": round(time.perf_counter() - start, 4),
+                "map": str(map_path),
+                "figure": str(fig_path) if fig_path else None,
+            }
+            print(json.dumps(row), flush=True)
+        else:
+            print(f"{name} {result.score:.6f}", flush=True)
+        progress.step(Path(name).name)
+    progress.close()
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,175 @@
+"""predict.py: reading every kind of input file, bad files, JSON output, exit codes."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+import pytest
+import skimage.io
+import torch
+
+from nriqa.exr import ImageReadError, read_exr, write_exr
+from nriqa.models import create_model
+from nriqa.pretrained import save_pretrained
+
+REPO = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("predict", REPO / "predict.py")
+predict = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(predict)
+
+
+@pytest.fixture(scope="module")
+def weights(tmp_path_factory) -> Path:
+    torch.manual_seed(0)
+    out = tmp_path_factory.mktemp("weights")
+    save_pretrained(create_model("fcnn_fast"), "fcnn_fast", {"note": "untrained, for tests"}, dir=out)
+    return out
+
+
+def rgb(h=24, w=30, scale=3.0, seed=0) -> np.ndarray:
+    return (np.random.default_rng(seed).random((h, w, 3)) * scale).astype(np.float32)
+
+
+def tiles(x, y):
+    td = OpenEXR.TileDescription()
+    td.xSize, td.ySize, td.mode = x, y, OpenEXR.ONE_LEVEL
+    return td
+
+
+# --- EXR kinds ------------------------------------------------------------------------------
+
+
+def test_exr_rgb_float_scanline(tmp_path):
+    a = rgb()
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": a}).write(str(tmp_path / "a.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "a.exr"), a)
+
+
+def test_exr_rgba_half_tiled(tmp_path):
+    a = rgb()
+    rgba = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2).astype(np.float16)
+    OpenEXR.File({"type": OpenEXR.tiledimage, "tiles": tiles(8, 8)}, {"RGBA": rgba}).write(str(tmp_path / "a.exr"))
+    out = read_exr(tmp_path / "a.exr")
+    assert out.dtype == np.float32 and out.shape == a.shape
+    np.testing.assert_allclose(out, a, rtol=1e-3)
+
+
+@pytest.mark.parametrize("channel", ["Y", "L", "Z"])
+def test_exr_luminance_only(tmp_path, channel):
+    y = rgb()[..., 0].astype(np.float16)
+    OpenEXR.File({"type": OpenEXR.scanlineimage}, {channel: y}).write(str(tmp_path / "y.exr"))
+    out = read_exr(tmp_path / "y.exr")
+    assert out.shape == y.shape + (3,)
+    np.testing.assert_array_equal(out[..., 2], y.astype(np.float32))
+
+
+def test_exr_multipart_and_deep_refused(tmp_path):
+    a = rgb()
+    OpenEXR.File([OpenEXR.Part({}, {"RGB": a}, "left"), OpenEXR.Part({}, {"RGB": a}, "right")]).write(str(tmp_path / "m.exr"))
+    with pytest.raises(ImageReadError, match="multi-part"):
+        read_exr(tmp_path / "m.exr")
+    z = np.empty((4, 5), dtype=object)
+    for idx in np.ndindex(z.shape):
+        z[idx] = np.ones(1 + sum(idx) % 2, np.float32)
+    OpenEXR.File({"type": OpenEXR.deepscanline, "compression": OpenEXR.ZIPS_COMPRESSION}, {"Z": z}).write(str(tmp_path / "d.exr"))
+    with pytest.raises(ImageReadError, match="deep"):
+        read_exr(tmp_path / "d.exr")
+
+
+# --- LDR files ------------------------------------------------------------------------------
+
+
+def test_read_png_jpeg_kinds(tmp_path):
+    rng = np.random.default_rng(0)
+    u8 = (rng.random((20, 22, 4)) * 255).astype(np.uint8)
+    skimage.io.imsave(tmp_path / "rgba.png", u8, check_contrast=False)
+    img, hdr = predict.read_image(tmp_path / "rgba.png")
+    assert not hdr and img.shape == (20, 22, 3) and img.dtype == np.float32
+    np.testing.assert_allclose(img, u8[..., :3] / 255.0, atol=1e-6)
+    u16 = (rng.random((20, 22)) * 65535).astype(np.uint16)
+    skimage.io.imsave(tmp_path / "gray16.png", u16, check_contrast=False)
+    img, _ = predict.read_image(tmp_path / "gray16.png")
+    np.testing.assert_allclose(img[..., 1], u16 / 65535.0, atol=1e-6)
+    skimage.io.imsave(tmp_path / "photo.jpg", u8[..., :3], check_contrast=False)
+    img, hdr = predict.read_image(tmp_path / "photo.jpg")
+    assert not hdr and img.shape == (20, 22, 3) and 0 <= img.min() and img.max() <= 1
+    with pytest.raises(ImageReadError, match="unsupported file type"):
+        predict.read_image(tmp_path / "photo.jpg.txt" if (tmp_path / "photo.jpg.txt").write_text("x") else None)
+
+
+# --- the command line -----------------------------------------------------------------------
+
+
+def bad_inputs(root: Path) -> tuple[list[str], list[str]]:
+    """Write good and bad inputs; return (good paths, bad paths)."""
+    write_exr(root / "good.exr", rgb())
+    skimage.io.imsave(root / "good.png", (rgb(scale=1) * 255).astype(np.uint8), check_contrast=False)
+    skimage.io.imsave(root / "gray16.png", (rgb(scale=1)[..., 0] * 65535).astype(np.uint16), check_contrast=False)
+    rgba = np.concatenate([rgb(scale=1), np.full((24, 30, 1), 0.5, np.float32)], axis=2)
+    skimage.io.imsave(root / "alpha.png", (rgba * 255).astype(np.uint8), check_contrast=False)
+    dirty = rgb()
+    dirty[0, 0], dirty[1, 1], dirty[2, 2], dirty[3, 3] = np.nan, np.inf, -4.0, 1e38
+    write_exr(root / "dirty.exr", dirty)
+    good = ["good.exr", "good.png", "gray16.png", "alpha.png", "dirty.exr"]
+
+    (root / "folder").mkdir()
+    (root / "truncated.png").write_bytes((root / "good.png").read_bytes()[:120])
+    (root / "text.png").write_text("not an image\n")
+    (root / "truncated.exr").write_bytes((root / "good.exr").read_bytes()[:300])
+    write_exr(root / "small.exr", rgb(8, 8))
+    OpenEXR.File([OpenEXR.Part({}, {"RGB": rgb()}, "a"), OpenEXR.Part({}, {"RGB": rgb()}, "b")]).write(str(root / "multi.exr"))
+    (root / "notes.txt").write_text("hello")
+    bad = ["missing.exr", "folder", "truncated.png", "text.png", "truncated.exr", "small.exr", "multi.exr", "notes.txt"]
+    return good, bad
+
+
+def test_cli_bad_files_do_not_stop_the_others(tmp_path, weights):
+    good, bad = bad_inputs(tmp_path)
+    files = [good[0], *bad[:4], *good[1:], *bad[4:]]
+    cmd = [sys.executable, str(REPO / "predict.py"), *files, "--weights-dir", str(weights), "--json", "--out", "out", "--no-figures"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}  # tiny images: one thread is faster on a shared CPU
+    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    errors = proc.stderr.strip().splitlines()
+    assert len(errors) == len(bad), proc.stderr  # one line per bad file, no traceback
+    for line, name in zip(errors, bad):
+        assert line.startswith("predict.py: error: ") and name in line
+    assert "smaller than the 14x14 receptive field" in errors[bad.index("small.exr")]
+    assert "multi-part" in errors[bad.index("multi.exr")]
+    rows = [json.loads(line) for line in proc.stdout.strip().splitlines()]
+    assert [r["path"] for r in rows] == good
+    for r in rows:
+        assert {"path", "score", "height", "width", "seconds", "hdr", "map"} <= r.keys()
+        assert np.isfinite(r["score"]) and (r["height"], r["width"]) == (24, 30)
+        assert r["hdr"] == r["path"].endswith(".exr")
+        qmap = read_exr(tmp_path / r["map"])
+        assert qmap.shape == (24, 30, 3) and np.isfinite(qmap).all()
+        assert np.mean(qmap[..., 0]) == pytest.approx(r["score"], abs=1e-5)
+    assert not list((tmp_path / "out").glob("*.partial*"))
+
+
+def test_cli_without_weights_is_one_line(tmp_path, capsys):
+    write_exr(tmp_path / "a.exr", rgb())
+    code = predict.main([str(tmp_path / "a.exr"), "--weights-dir", str(tmp_path / "none"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "no shipped weights 'fcnn_fast'" in err[0]
+
+
+def test_cli_plain_output_is_deterministic_and_flags_override(tmp_path, weights, capsys):
+    write_exr(tmp_path / "a.exr", rgb(scale=1.0))
+    args = [str(tmp_path / "a.exr"), "--weights-dir", str(weights), "--out"]
+    assert predict.main([*args, str(tmp_path / "o1")]) == 0
+    assert predict.main([*args, str(tmp_path / "o2"), "--no-figures"]) == 0
+    assert predict.main([*args, str(tmp_path / "o3"), "--no-figures", "--ldr"]) == 0
+    assert (tmp_path / "o1" / "a_figure.png").stat().st_size > 1000 and not (tmp_path / "o2" / "a_figure.png").exists()
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0] == lines[1] and lines[0].split()[0] == str(tmp_path / "a.exr")
+    assert lines[2] != lines[0]  # --ldr skips the tone map of an in-range EXR
+    np.testing.assert_array_equal(read_exr(tmp_path / "o1" / "a_map.exr"), read_exr(tmp_path / "o2" / "a_map.exr"))
