@@ -89,7 +89,7 @@ def write_figure(path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from nriqa.atomic import atomic_path
+    from nriqa.atomic import save_figure
 
     step = max(1, max(qmap.shape) // 1024)  # a figure needs no more than ~1k pixels a side
     shown, qmap = shown[::step, ::step], qmap[::step, ::step]
@@ -103,9 +103,7 @@ def write_figure(path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, 
     for ax in axes:
         ax.set_axis_off()
     fig.colorbar(im, ax=axes[1], fraction=0.046)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, dpi=100)
 
 
 class Progress:

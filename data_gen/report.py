@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from data_gen.convergence import dataset_verdicts  # noqa: E402
-from nriqa.atomic import atomic_path, write_text_atomic  # noqa: E402
+from nriqa.atomic import save_figure, write_text_atomic  # noqa: E402
 from nriqa.exr import read_exr  # noqa: E402
 from nriqa.manifest import ManifestError, Record, read_manifest  # noqa: E402
 from nriqa.ssim import ssim_map  # noqa: E402
@@ -74,12 +74,6 @@ def write_csv(path: Path, rows: list[dict]) -> None:
     write_text_atomic(path, buf.getvalue())
 
 
-def savefig(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-
-
 def plot_scene(rows: list[dict], scene: str, path: Path) -> None:
     fig, axes = plt.subplots(2, 2, figsize=(10, 8))
     for alg in sorted({r["algorithm"] for r in rows}):
@@ -92,7 +86,7 @@ def plot_scene(rows: list[dict], scene: str, path: Path) -> None:
                 ax.grid(True, which="both", alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(f"{scene}: error against samples and run time")
-    savefig(fig, path)
+    save_figure(fig, path, dpi=110, bbox_inches="tight")
 
 
 def contact_sheet(root: Path, records: list[Record], scene: str, path: Path) -> None:
@@ -112,7 +106,7 @@ def contact_sheet(root: Path, records: list[Record], scene: str, path: Path) -> 
             ax.imshow(_ldr(root, rec.path, {})[0].permute(1, 2, 0).numpy())
             ax.set_title("reference" if spp is None else f"{spp} spp", fontsize=7)
         axes[i, 0].text(-0.1, 0.5, alg, transform=axes[i, 0].transAxes, ha="right", va="center", fontsize=7)
-    savefig(fig, path)
+    save_figure(fig, path, dpi=110, bbox_inches="tight")
 
 
 def main(argv: list[str] | None = None) -> int:

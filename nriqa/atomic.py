@@ -46,6 +46,19 @@ def write_text_atomic(target: str | os.PathLike, text: str) -> None:
         tmp.write_text(text, encoding="utf-8")
 
 
+def save_figure(fig, target: str | os.PathLike, **savefig_kw) -> Path:
+    """Save a matplotlib figure atomically (format from ``target``'s suffix) and close it."""
+    import matplotlib.pyplot as plt
+
+    target = Path(target)
+    try:
+        with atomic_path(target) as tmp:
+            fig.savefig(tmp, format=target.suffix.lstrip(".") or "png", **savefig_kw)
+    finally:
+        plt.close(fig)
+    return target
+
+
 def sweep_partials(root: str | os.PathLike) -> int:
     """Delete temp files left under ``root`` by a killed run; return how many were removed."""
     removed = 0

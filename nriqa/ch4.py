@@ -52,6 +52,7 @@ from kornia.metrics import ssim as kornia_ssim
 from skimage.metrics import mean_squared_error, normalized_root_mse, peak_signal_noise_ratio
 from torch import Tensor
 
+from nriqa.atomic import save_figure, write_text_atomic
 from nriqa.correlation import kendall_tau, srocc
 from nriqa.exr import ImageReadError
 from nriqa.external import load_display
@@ -212,8 +213,7 @@ def plot_heatmaps(path: Path, rows: list[dict], measures: list[str], title: str)
         ax.axis("off")
     fig.suptitle(title, fontsize=9)
     fig.subplots_adjust(left=0.06, right=0.98, bottom=0.08, top=0.9, wspace=0.35, hspace=0.45)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
 
 
 def _ladders(records: list[Record], algorithms: str, scenes: list[str] | None) -> dict:
@@ -264,10 +264,10 @@ def run_study(data: str | Path, out: str | Path, algorithms: str = DEFAULT_ALGOR
     write_csv(out / "monotonicity.csv", mono, ["scene", "measure", "n", "srocc", "tau", "agrees"])
     note = (f"Largest |ln Q| (eq. 4.7) with a noisy reference of >= {CONVERGED_FACTOR}x the test spp, over variants; "
             "SSIM-type measures as 1 - SSIM; PSNR as is.\n\n")
-    (out / "condensed.md").write_text(f"# Condensed ln Q table (thesis 4.5) on {root}\n\n{note}" + markdown_table(condensed, ["scene", "algorithm", *measures]), encoding="utf-8")
+    write_text_atomic(out / "condensed.md", f"# Condensed ln Q table (thesis 4.5) on {root}\n\n{note}" + markdown_table(condensed, ["scene", "algorithm", *measures]))
     disagree = sorted({r["measure"] for r in mono if not r["agrees"]})
     summary = f"Measures with tau < {DISAGREE_TAU} against MSE in some scene: {', '.join(disagree) or 'none'}.\n\n"
-    (out / "monotonicity.md").write_text(f"# Monotonicity against MSE on {root}\n\n{summary}" + markdown_table(mono, ["scene", "measure", "n", "srocc", "tau", "agrees"]), encoding="utf-8")
+    write_text_atomic(out / "monotonicity.md", f"# Monotonicity against MSE on {root}\n\n{summary}" + markdown_table(mono, ["scene", "measure", "n", "srocc", "tau", "agrees"]))
     if figures:
         for scene, algorithm in sorted({(k[0], k[2]) for k in ladders}):
             variant = min(k[1] for k in ladders if k[0] == scene and k[2] == algorithm)

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from torch import Tensor  # noqa: E402
 
-from nriqa.atomic import atomic_path  # noqa: E402
+from nriqa.atomic import save_figure  # noqa: E402
 
 _CORRELATIONS = (("pcc", "PCC"), ("srocc", "SROCC"), ("tau", "Kendall τ"))
 
@@ -60,10 +60,7 @@ def plot_training_curves(
             a.legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=100)
 
 
 class TrainingCurves(L.Callback):

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from nriqa.atomic import save_figure, write_text_atomic
 from nriqa.baselines import Item, Prediction, Predictor, baseline_names, create_baseline
 from nriqa.baselines.mapping import MonotoneMap
 from nriqa.correlation import kendall_tau, pcc, srocc
@@ -78,9 +79,37 @@ class ScorerPredictor(Predictor):
         self.scale = "ssim" if quantity == "ssim" else "raw"
         self.higher_is_better = quantity == "ssim"
 
+    def scorer_for(self, item: Item):
+        """The scorer that scores ``item``."""
+        return self.scorer
+
     def predict(self, item: Item) -> Prediction:
-        result = self.scorer(item.ldr, hdr=False)
+        result = self.scorer_for(item)(item.ldr, hdr=False)
         return Prediction(float(result.score), torch.as_tensor(result.map).float())
+
+
+class CrossvalPredictor(ScorerPredictor):
+    """A cross-validation run (``python -m nriqa.crossval``) as one predictor.
+
+    Each image is scored by the fold that held its scene out, with that fold's ``last.ckpt`` (the
+    end of training, so no checkpoint was chosen by the held-out scene's loss).
+    """
+
+    def __init__(self, run_dir: str | Path) -> None:
+        from nriqa.scorer import Scorer
+
+        self.run_dir = Path(run_dir)
+        ckpts = sorted(self.run_dir.glob("folds/*/checkpoints/last.ckpt"))
+        if not ckpts:
+            raise EvaluationError(f"{self.run_dir}: no folds/<scene>/checkpoints/last.ckpt; run python -m nriqa.crossval first")
+        self.scorers = {p.parents[1].name: Scorer.from_checkpoint(p) for p in ckpts}
+        super().__init__(f"{self.run_dir.name} (cv)", next(iter(self.scorers.values())))
+
+    def scorer_for(self, item: Item):
+        scene = item.record.scene
+        if scene not in self.scorers:
+            raise EvaluationError(f"{self.run_dir}: no fold holds scene {scene} out (folds: {', '.join(self.scorers)})")
+        return self.scorers[scene]
 
 
 def records_of(data: str | Path, pattern: str = DEFAULT_PATTERN, reference: str = DEFAULT_REFERENCE) -> tuple[Path, list[Record]]:
@@ -251,8 +280,7 @@ def plot_scatter(path: Path, rows: list[dict], predictors: list[Predictor]) -> N
         ax.axis("off")
     axes.flat[0].legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def plot_maps(path: Path, data: Dataset, items: list[Item], maps: dict, predictor: str) -> None:
@@ -277,8 +305,7 @@ def plot_maps(path: Path, data: Dataset, items: list[Item], maps: dict, predicto
             ax.set_title(title, fontsize=8)
             ax.axis("off")
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.93, wspace=0.05, hspace=0.15)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path, dpi=80)
 
 
 def _figure_items(items: list[Item], scene: str, count: int = 3) -> list[Item]:
@@ -304,9 +331,9 @@ def checkpoint_names(paths: list[str]) -> list[str]:
     return [f"{n}#{i}" for i, n in enumerate(names)]
 
 
-def build_predictors(models: list[str], checkpoints: list[str], baselines: str) -> list[Predictor]:
-    """Learned scorers (shipped ``models``, ``checkpoints``) then the requested baselines (``all``, ``none`` or a comma list)."""
-    predictors: list[Predictor] = []
+def build_predictors(models: list[str], checkpoints: list[str], baselines: str, crossval: list[str] = ()) -> list[Predictor]:
+    """Learned scorers (cross-validation runs, shipped ``models``, ``checkpoints``) then the baselines (``all``, ``none`` or a comma list)."""
+    predictors: list[Predictor] = [CrossvalPredictor(run) for run in crossval]
     if models or checkpoints:
         from nriqa.scorer import Scorer
 
@@ -345,8 +372,8 @@ def evaluate(data_dir: str | Path, out: str | Path, predictors: list[Predictor],
               f"scenes: {', '.join(eval_scenes)}. Image level: predicted vs true mean SSIM (correlations of the score signed "
               "so that higher = better; MAE on the SSIM scale, raw scores through a monotone map fitted on the other scenes). "
               "Pixel level: PCC of the maps. `loso`: fitted leave-one-scene-out.\n\n")
-    (out / "comparison.md").write_text(header + markdown_table(comparison, COMPARISON_COLUMNS), encoding="utf-8")
-    (out / "per_scene.md").write_text(header + markdown_table(per_scene, SCENE_COLUMNS), encoding="utf-8")
+    write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
+    write_text_atomic(out / "per_scene.md", header + markdown_table(per_scene, SCENE_COLUMNS))
     if figures:
         plot_scatter(out / "scatter.png", rows, predictors)
         for p in predictors:
@@ -365,6 +392,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", required=True, help="output folder for tables and figures")
     parser.add_argument("--model", action="append", default=[], help="shipped weights name (repeatable)")
     parser.add_argument("--checkpoint", action="append", default=[], help="training checkpoint (repeatable)")
+    parser.add_argument("--crossval", action="append", default=[],
+                        help="cross-validation run dir (reports/crossval/NAME): each scene scored by the fold that held it out (repeatable)")
     parser.add_argument("--baselines", default="all", help=f"'all', 'none' or a comma list of {', '.join(baseline_names())}")
     parser.add_argument("--scenes", nargs="+", help="evaluate only these scenes (e.g. the held-out scene of a fold)")
     parser.add_argument("--algorithms", default="*", help="comma-separated globs of algorithms to evaluate (default all)")
@@ -377,7 +406,7 @@ def main(argv: list[str] | None = None) -> None:
     threads = torch.get_num_threads()
     torch.set_num_threads(max(1, args.threads))
     try:
-        predictors = build_predictors(args.model, args.checkpoint, args.baselines)
+        predictors = build_predictors(args.model, args.checkpoint, args.baselines, args.crossval)
         comparison, _ = evaluate(args.data, args.out, predictors, scenes, args.algorithms, args.pattern, args.reference, not args.no_figures)
     except (EvaluationError, ExternalError, ManifestError, ImageReadError, CheckpointError) as exc:
         sys.exit(f"error: {exc}")

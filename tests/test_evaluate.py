@@ -160,3 +160,30 @@ def test_checkpoint_names_are_short_and_distinct():
 
     assert checkpoint_names(["runs/a/checkpoints/last.ckpt", "runs/b/checkpoints/last.ckpt"]) == ["a/last", "b/last"]
     assert checkpoint_names(["x/best.ckpt"]) == ["best"]
+
+
+def test_crossval_run_scores_each_scene_with_the_fold_that_held_it_out(data, tmp_path):
+    from nriqa.evaluate import CrossvalPredictor, EvaluationError
+    from nriqa.models import create_model
+    from nriqa.scorer import Scorer
+
+    nets = {}
+    for seed, scene in enumerate(["alpha", "beta"]):
+        torch.manual_seed(seed)
+        nets[scene] = create_model("fcnn_fast").eval()
+        ckpt = tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt"
+        ckpt.parent.mkdir(parents=True)
+        state = {f"net.{k}": v for k, v in nets[scene].state_dict().items()}
+        torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, ckpt)
+    p = CrossvalPredictor(tmp_path / "run")
+    assert p.name == "run (cv)" and p.scale == "ssim"
+    rows, _, _ = run_predictors(data, [p], ["alpha", "beta"])
+    for scene in ("alpha", "beta"):
+        item = next(it for it in data.items if it.record.scene == scene)
+        expected = Scorer(nets[scene])(item.ldr, hdr=False).score
+        got = next(r["predicted"] for r in rows if r["id"] == item.record.id)
+        assert got == pytest.approx(expected, abs=1e-6)
+    with pytest.raises(EvaluationError, match="no fold holds scene gamma out"):
+        run_predictors(data, [p], ["gamma"])
+    with pytest.raises(EvaluationError, match="run python -m nriqa.crossval first"):
+        CrossvalPredictor(tmp_path / "nothing")
