@@ -1,4 +1,5 @@
-"""Shared fixtures: a tiny synthetic dataset in the manifest format (no renderer needed).
+"""Shared fixtures: a tiny synthetic dataset in the manifest format (no renderer needed), and the
+tiny preset rendered by data_gen once per test session.
 
 Smooth references + Gaussian noise per spp; used by the data, training, cross-validation and
 stability tests.
@@ -6,6 +7,8 @@ stability tests.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -47,3 +50,21 @@ def make_dataset(root: Path, size: int = 80, scenes=SCENES, spps=SPPS, twins: bo
 def synthetic_dataset(tmp_path_factory) -> Path:
     """3 scenes (alpha, beta, gamma) x (reference + test and twin at 1, 4, 16, 64 spp), 80x80."""
     return make_dataset(tmp_path_factory.mktemp("synthetic"))
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_data_gen(*overrides: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    """``python -m data_gen OVERRIDES...`` from the repository root."""
+    return subprocess.run([sys.executable, "-m", "data_gen", *overrides], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="session")
+def tiny(tmp_path_factory) -> Path:
+    """The tiny preset (8 scenes, 32x32), rendered once per test session."""
+    pytest.importorskip("mitsuba")
+    out = tmp_path_factory.mktemp("tiny")
+    proc = run_data_gen("preset=tiny", f"out={out}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out

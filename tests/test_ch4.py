@@ -77,3 +77,10 @@ def test_cli_on_synthetic_dataset(synthetic_dataset, tmp_path, capsys):
         main([str(synthetic_dataset), "--out", str(tmp_path), "--measures", "ssim"])
     with pytest.raises(SystemExit, match="^error: .*no manifest"):
         main([str(tmp_path / "nothing"), "--out", str(tmp_path)])
+
+
+def test_cli_on_the_tiny_preset(tiny, tmp_path):
+    main([str(tiny), "--out", str(tmp_path), "--scenes", "cornell", "caustic", "--measures", "mse,mae,dssim"])
+    condensed = (tmp_path / "condensed.md").read_text()
+    assert "| cornell | path_independent |" in condensed and "| caustic | path_independent |" in condensed
+    assert (tmp_path / "heatmap_cornell_path_independent.png").stat().st_size > 1000

@@ -23,23 +23,7 @@ from data_gen.scenes import get_scene, list_scenes
 from nriqa.exr import read_exr
 from nriqa.manifest import read_manifest
 
-REPO = Path(__file__).resolve().parents[1]
-
-
-def run_data_gen(*overrides: str, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "data_gen", *overrides], cwd=REPO, capture_output=True, text=True, timeout=timeout
-    )
-
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory) -> Path:
-    """The tiny preset, rendered once for this module."""
-    out = tmp_path_factory.mktemp("tiny")
-    proc = run_data_gen("preset=tiny", f"out={out}")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    return out
-
+from conftest import REPO, run_data_gen
 
 # --- planning -------------------------------------------------------------------------------
 

@@ -187,3 +187,12 @@ def test_crossval_run_scores_each_scene_with_the_fold_that_held_it_out(data, tmp
         run_predictors(data, [p], ["gamma"])
     with pytest.raises(EvaluationError, match="run python -m nriqa.crossval first"):
         CrossvalPredictor(tmp_path / "nothing")
+
+
+def test_evaluation_on_the_tiny_preset(tiny, tmp_path):
+    main([str(tiny), "--out", str(tmp_path), "--baselines", "wavelet_sigma,laplacian,dual_buffer_corrected", "--no-figures"])
+    rows = {r.split(",")[0]: r.split(",") for r in (tmp_path / "comparison.csv").read_text().splitlines()[1:]}
+    assert set(rows) == {"wavelet_sigma", "laplacian", "dual_buffer_corrected"}
+    header = (tmp_path / "comparison.csv").read_text().splitlines()[0].split(",")
+    srocc = float(rows["dual_buffer_corrected"][header.index("srocc")])
+    assert srocc > 0.9, "the twin-based estimate ranks the tiny preset's images nearly perfectly"
