@@ -293,3 +293,15 @@ def test_stale_record_is_rendered_again(tiny, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "1 jobs to do" in proc.stdout + proc.stderr
     assert json.loads(rec_file.read_text())["spp"] == 256
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", list_scenes())
+def test_default_preset_scene_converges_at_full_size(tmp_path, scene):
+    """One variant of a scene at the default preset's size; every declared algorithm converges."""
+    proc = run_data_gen("preset=default", f"out={tmp_path}", f"scenes=[{scene}]", "variants=1")
+    assert proc.returncode == 0, proc.stderr
+    records, _ = read_manifest(tmp_path)
+    verdicts = dataset_verdicts(tmp_path, records)
+    assert {v["algorithm"] for v in verdicts} == set(get_scene(scene).algorithms)
+    assert all(v["converged"] for v in verdicts), verdicts
