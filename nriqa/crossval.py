@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import copy
 import json
-import sys
 from pathlib import Path
 
 import hydra
@@ -30,7 +29,7 @@ from nriqa.lit_module import load_net_from_checkpoint
 from nriqa.manifest import read_manifest, scenes_of
 from nriqa.data.folds import FoldError, noisy_records
 from nriqa.tables import markdown_table, mean_std_row, write_csv
-from nriqa.training import set_project_root, train, user_error
+from nriqa.training import exit_on_user_error, set_project_root, train
 
 RESULT_NAME = "result.json"
 _STATS = ("pcc", "srocc", "tau")
@@ -151,13 +150,7 @@ def crossval(cfg: DictConfig) -> list[dict]:
 
 @hydra.main(config_path="../configs", config_name="crossval", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    try:
-        crossval(cfg)
-    except Exception as exc:
-        message = user_error(exc)
-        if message is None:
-            raise
-        sys.exit(f"error: {message}")
+    exit_on_user_error(crossval, cfg)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import hydra
@@ -22,7 +21,7 @@ from omegaconf import DictConfig, open_dict
 
 from nriqa.atomic import write_text_atomic
 from nriqa.tables import markdown_table, write_csv
-from nriqa.training import set_project_root, train, user_error
+from nriqa.training import exit_on_user_error, set_project_root, train
 
 RESULT_NAME = "result.json"
 COLUMNS = [
@@ -104,13 +103,7 @@ def write_tables(out_dir: Path, rows: list[dict], schedule: str) -> None:
 @hydra.main(config_path="../configs", config_name="stability", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     forwarded = [o for o in HydraConfig.get().overrides.task if not o.startswith(_PER_RUN)]
-    try:
-        stability(cfg, forwarded)
-    except Exception as exc:
-        message = user_error(exc)
-        if message is None:
-            raise
-        sys.exit(f"error: {message}")
+    exit_on_user_error(stability, cfg, forwarded)
 
 
 if __name__ == "__main__":

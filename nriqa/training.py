@@ -7,6 +7,7 @@ training as ``python train.py``.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -38,6 +39,17 @@ def user_error(exc: BaseException) -> str | None:
             return str(seen)
         seen = seen.__cause__ or seen.__context__
     return None
+
+
+def exit_on_user_error(fn, *args):
+    """Return ``fn(*args)``; an error :func:`user_error` recognises exits with its one line instead."""
+    try:
+        return fn(*args)
+    except Exception as exc:
+        message = user_error(exc)
+        if message is None:
+            raise
+        sys.exit(f"error: {message}")
 
 
 def _instantiate_group(cfg: DictConfig | None) -> list:
