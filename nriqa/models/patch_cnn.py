@@ -51,20 +51,12 @@ def _block(cin: int, cout: int, size: int) -> list[nn.Module]:
     ]
 
 
-_OUTPUT_ACTIVATIONS = {"relu": nn.ReLU, "softplus": nn.Softplus}
-
-
 class PatchCNN(nn.Module):
     """Thesis ch. 5, experiment I patch CNN: ``(B,3,32,32)`` LDR in [0,1] -> ``(B,1)`` >= 0.
 
     Trained to predict the MAE of the patch against its converged reference. 'same' padding,
     batch norm with Keras momentum 0.9, per-element PReLU, Dropout(0.7) before the last dense
     layer, final ReLU so scores are non-negative. 8,553,889 trainable parameters.
-
-    ``output_activation="softplus"`` replaces the final ReLU (same parameters): with the ReLU the
-    single output unit can die -- every patch lands below zero, the prediction is constant 0 and
-    no gradient flows back (the thesis's NaN with L1/L2/Charbonnier came from this state; here
-    the guarded PCC keeps the loss finite, but the net stops learning).
 
     The flatten is channels-first (PyTorch order); porting Keras (channels-last) dense weights
     would need a permutation of the first dense layer's inputs.
@@ -74,10 +66,8 @@ class PatchCNN(nn.Module):
     patch_size = 32
     receptive_field = 32
 
-    def __init__(self, dropout: float = 0.7, output_activation: str = "relu"):
+    def __init__(self, dropout: float = 0.7):
         super().__init__()
-        if output_activation not in _OUTPUT_ACTIVATIONS:
-            raise ValueError(f"patch_cnn: output_activation must be one of {', '.join(_OUTPUT_ACTIVATIONS)}, got {output_activation!r}")
         s = self.patch_size
         self.features = nn.Sequential(
             *_block(3, 32, s),
@@ -91,7 +81,7 @@ class PatchCNN(nn.Module):
             nn.Linear(64 * (s // 2) ** 2, 512),
             nn.Dropout(dropout),
             nn.Linear(512, 1),
-            _OUTPUT_ACTIVATIONS[output_activation](),
+            nn.ReLU(),
         )
         init_keras_(self)
 
