@@ -103,7 +103,7 @@ class CrossvalPredictor(ScorerPredictor):
         if not ckpts:
             raise EvaluationError(f"{self.run_dir}: no folds/<scene>/checkpoints/last.ckpt; run python -m nriqa.crossval first")
         self.scorers = {p.parents[1].name: Scorer.from_checkpoint(p) for p in ckpts}
-        super().__init__(f"{self.run_dir.name} (cv)", next(iter(self.scorers.values())))
+        super().__init__(f"{self.run_dir.name}-cv", next(iter(self.scorers.values())))
 
     def scorer_for(self, item: Item):
         scene = item.record.scene

@@ -176,7 +176,7 @@ def test_crossval_run_scores_each_scene_with_the_fold_that_held_it_out(data, tmp
         state = {f"net.{k}": v for k, v in nets[scene].state_dict().items()}
         torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, ckpt)
     p = CrossvalPredictor(tmp_path / "run")
-    assert p.name == "run (cv)" and p.scale == "ssim"
+    assert p.name == "run-cv" and p.scale == "ssim"
     rows, _, _ = run_predictors(data, [p], ["alpha", "beta"])
     for scene in ("alpha", "beta"):
         item = next(it for it in data.items if it.record.scene == scene)
