@@ -31,6 +31,7 @@ COLUMNS = [
     "first_nonfinite_step",
     "nonfinite_params",
     "final_train_loss",
+    "final_train_pcc",
     "final_val_loss",
     "epochs",
     "steps",
@@ -42,8 +43,8 @@ _PER_RUN = ("experiment=", "loss=", "+experiment=", "+loss=")
 set_project_root()
 
 
-def run_one(cfg: DictConfig, run_dir: Path) -> dict:
-    """Train one composed config into ``run_dir`` and report its numerical health."""
+def run_one(cfg: DictConfig, run_dir: Path, loss: str) -> dict:
+    """Train one composed config (loss group ``loss``) into ``run_dir`` and report its numerical health."""
     with open_dict(cfg):
         cfg.paths.output_dir = str(run_dir)
         # Record the blow-up and keep going would only repeat it; stop at the first one.
@@ -53,11 +54,12 @@ def run_one(cfg: DictConfig, run_dir: Path) -> dict:
     last = model.history[-1] if model.history else {}
     result = {
         "experiment": cfg.experiment_name,
-        "loss": cfg.model.loss.name,
+        "loss": loss,
         "nonfinite_loss": model.nonfinite_steps > 0,
         "first_nonfinite_step": model.first_nonfinite_step,
         "nonfinite_params": not all(bool(torch.isfinite(p).all()) for p in model.net.parameters()),
         "final_train_loss": last.get("train/loss", math.nan),
+        "final_train_pcc": last.get("train/pcc", math.nan),
         "final_val_loss": last.get("val/loss"),
         "epochs": len(model.history),
         "steps": int(trainer.global_step),
@@ -81,7 +83,7 @@ def stability(cfg: DictConfig, forwarded: list[str]) -> list[dict]:
                 continue
             print(f"{experiment} / {loss}: training")
             run_cfg = hydra.compose("stability", overrides=[*forwarded, f"experiment={experiment}", f"loss={loss}"])
-            rows.append(run_one(run_cfg, run_dir))
+            rows.append(run_one(run_cfg, run_dir, loss))
             write_tables(out_dir, rows, cfg.schedule.name)
     write_tables(out_dir, rows, cfg.schedule.name)
     print(f"wrote {out_dir / 'stability.md'}")
@@ -94,7 +96,9 @@ def write_tables(out_dir: Path, rows: list[dict], schedule: str) -> None:
         f"# Loss stability (schedule {schedule})\n\n"
         "nonfinite_loss: some training step gave a NaN/Inf loss (training stops there; "
         "first_nonfinite_step is its global step). nonfinite_params: a weight was NaN/Inf at the "
-        "end. final_*_loss: mean over the last epoch. seconds: wall time of the run.\n\n"
+        "end. final_*_loss: mean over the last epoch. final_train_pcc: PCC of the last epoch's "
+        "predictions with their targets; exactly 0 means a constant prediction (a dead output). "
+        "seconds: wall time of the run.\n\n"
         + markdown_table(rows, COLUMNS, digits=4)
     )
     write_text_atomic(out_dir / "stability.md", text)

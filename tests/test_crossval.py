@@ -60,12 +60,15 @@ def test_crossval_runs_every_fold_and_resumes(synthetic_dataset, tmp_path, capsy
 def test_stability_table(synthetic_dataset, tmp_path):
     forwarded = [f"paths.data_dir={synthetic_dataset}", f"stability.out_dir={tmp_path}", *TINY, "data.batch_size=2"]
     with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
-        cfg = compose("stability", overrides=[*forwarded, "stability.experiments=[patch,fcnn_fast]", "stability.losses=[l2]"])
+        cfg = compose("stability", overrides=[*forwarded, "stability.experiments=[patch,fcnn_fast]", "stability.losses=[l2,joint_signed]"])
         rows = stability(cfg, forwarded)
-    assert [(r["experiment"], r["loss"]) for r in rows] == [("patch", "l2"), ("fcnn_fast", "l2")]
+    assert [(r["experiment"], r["loss"]) for r in rows] == [
+        ("patch", "l2"), ("patch", "joint_signed"), ("fcnn_fast", "l2"), ("fcnn_fast", "joint_signed")
+    ]
+    assert all(-1 <= r["final_train_pcc"] <= 1 for r in rows)
     assert all(r["nonfinite_loss"] is False and r["nonfinite_params"] is False for r in rows)
     table = list(csv.DictReader((tmp_path / "stability.csv").open()))
-    assert len(table) == 2 and all(float(r["final_train_loss"]) >= 0 for r in table)
+    assert len(table) == 4 and all(float(r["final_train_loss"]) >= 0 for r in table)
     assert "nonfinite_loss" in (tmp_path / "stability.md").read_text()
     assert not list(tmp_path.rglob("*.ckpt"))
 
