@@ -22,6 +22,8 @@ training scenes, for the MAE.
 
 from __future__ import annotations
 
+import abc
+
 import dataclasses
 import math
 
@@ -57,7 +59,7 @@ class Prediction:
     map: Tensor | None = None
 
 
-class Predictor:
+class Predictor(abc.ABC):
     """Interface of everything evaluation compares: the baselines and the learned scorers.
 
     Attributes:
@@ -75,9 +77,9 @@ class Predictor:
     def fit(self, items: list[Item], references: list[Tensor]) -> None:
         """Fit on the training scenes: their noisy ``items`` (with true scores) and reference LDRs ``(3, H, W)``."""
 
+    @abc.abstractmethod
     def predict(self, item: Item) -> Prediction:
         """Score one image (NaN when the predictor cannot, e.g. no twin)."""
-        raise NotImplementedError
 
 
 def baseline_names() -> list[str]:
