@@ -124,3 +124,17 @@ def test_receptive_field_bounds_random_model(name):
     rows, cols = _changed_box(model, (16, 16))
     for span in (rows, cols):
         assert span.stop - span.start <= model.receptive_field
+
+
+def test_patch_cnn_output_starts_alive_at_the_target_scale():
+    """Glorot-initialised, the last layer starts at +-2 and Adam kills the ReLU output at once."""
+    import torch
+
+    from nriqa.models import create_model
+
+    torch.manual_seed(0)
+    net = create_model("patch_cnn").eval()
+    with torch.no_grad():
+        out = net(torch.rand(64, 3, 32, 32))
+    assert (out > 0).float().mean() > 0.9
+    assert 0.0 < out.mean() < 0.2 and out.std() < 0.1

@@ -58,6 +58,11 @@ class PatchCNN(nn.Module):
     batch norm with Keras momentum 0.9, per-element PReLU, Dropout(0.7) before the last dense
     layer, final ReLU so scores are non-negative. 8,553,889 trainable parameters.
 
+    The last dense layer starts at the target's scale (weights x ``output_init_scale``, bias
+    ``output_init_bias`` ~ a typical patch MAE): with plain Glorot init its outputs start at about
+    +-2, Adam's first steps throw every one below zero and the ReLU output dies for good (the
+    thesis's NaN with L1/L2/Charbonnier; here a constant 0). Parameters are unchanged.
+
     The flatten is channels-first (PyTorch order); porting Keras (channels-last) dense weights
     would need a permutation of the first dense layer's inputs.
     """
@@ -66,7 +71,7 @@ class PatchCNN(nn.Module):
     patch_size = 32
     receptive_field = 32
 
-    def __init__(self, dropout: float = 0.7):
+    def __init__(self, dropout: float = 0.7, output_init_scale: float = 0.01, output_init_bias: float = 0.05):
         super().__init__()
         s = self.patch_size
         self.features = nn.Sequential(
@@ -84,6 +89,10 @@ class PatchCNN(nn.Module):
             nn.ReLU(),
         )
         init_keras_(self)
+        last = self.head[-2]
+        with torch.no_grad():
+            last.weight.mul_(output_init_scale)
+            last.bias.fill_(output_init_bias)
 
     def forward(self, x: Tensor) -> Tensor:
         """``x``: ``(B,3,32,32)``; returns ``(B,1)``."""
