@@ -55,6 +55,17 @@ def synthetic_dataset(tmp_path_factory) -> Path:
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture
+def one_thread():
+    """One torch intra-op thread: faster and steadier for tiny inputs on a shared 2-core machine."""
+    import torch
+
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
 def run_data_gen(*overrides: str, timeout: float = 600) -> subprocess.CompletedProcess:
     """``python -m data_gen OVERRIDES...`` from the repository root."""
     return subprocess.run([sys.executable, "-m", "data_gen", *overrides], cwd=REPO, capture_output=True, text=True, timeout=timeout)

@@ -56,12 +56,7 @@ class OracleScorer:
         return ScoreResult(m, float(m.mean()), "ssim", True)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def test_render_until_runs_to_max_spp(scene, scorer, reference):

@@ -13,13 +13,7 @@ from nriqa.pretrained import PretrainedError, list_pretrained, load_pretrained, 
 from nriqa.scorer import Scorer, ScorerInputError
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    # The CI machine is shared; one intra-op thread is both faster and steadier for tiny inputs.
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def untrained(name: str, seed: int = 0) -> torch.nn.Module:
