@@ -67,7 +67,7 @@ def select_backend(requested: str = "auto") -> str:
         return LLVM_VARIANT
     if requested == LLVM_VARIANT:
         raise RuntimeError(f"backend {LLVM_VARIANT} unusable: {reason}; install libllvm19 or use backend=scalar_rgb")
-    log.warning("%s; falling back to %s (about 3x slower). Install libllvm19 for the fast variant.", reason, SCALAR_VARIANT)
+    log.warning("%s; falling back to %s (about 2x slower on large renders). Install libllvm19 for the fast variant.", reason, SCALAR_VARIANT)
     return SCALAR_VARIANT
 
 
