@@ -20,8 +20,9 @@ import numpy as np
 
 from nriqa.exr import read_exr
 from nriqa.manifest import Record
+from nriqa.tonemap import LUMA_WEIGHTS
 
-LUMA = np.array([0.2989, 0.587, 0.114], dtype=np.float64)  # thesis eq. 4.1, as nriqa.tonemap.luminance
+LUMA = np.array(LUMA_WEIGHTS, dtype=np.float64)  # thesis eq. 4.1
 
 
 @dataclasses.dataclass(frozen=True)

@@ -27,20 +27,16 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
 import torch
-from PIL import Image
 from torch import Tensor
 
-from nriqa.data.images import load_ldr
 from nriqa.exr import ImageReadError
+from nriqa.imread import SUFFIXES, read_image
 from nriqa.manifest import Record, write_manifest
+from nriqa.tonemap import tonemap
 
 DEFAULT_PATTERN = "{scene}/{algorithm} - {spp}"
 DEFAULT_REFERENCE = "{scene}/reference.*"
-HDR_SUFFIXES = (".exr",)
-LDR_SUFFIXES = (".png", ".jpg", ".jpeg")
-SUFFIXES = HDR_SUFFIXES + LDR_SUFFIXES
 _FIELDS = {"scene": r"[^/]+?", "algorithm": r"[^/]+?", "spp": r"\d+", "variant": r"\d+", "seed": r"\d+"}
 
 
@@ -69,32 +65,16 @@ def compile_pattern(pattern: str) -> re.Pattern:
 def load_display(path: str | os.PathLike) -> Tensor:
     """Load an image as display-referred LDR ``(3, H, W)`` float32 in [0, 1].
 
-    EXR is linear HDR and goes through the package's tone map (:func:`nriqa.data.images.load_ldr`);
-    PNG/JPEG are already display-referred and are only scaled to [0, 1] (8 or 16 bit; grey
-    replicated to RGB, alpha dropped).
+    Read by :func:`nriqa.imread.read_image`: EXR is linear HDR and goes through the package's
+    tone map; PNG/JPEG are already display-referred and are only scaled to [0, 1] (8 or 16 bit;
+    grey replicated to RGB, alpha dropped).
 
     Raises:
         ImageReadError: missing, unreadable or unsupported file.
     """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix in HDR_SUFFIXES:
-        return load_ldr(path)
-    if suffix not in LDR_SUFFIXES:
-        raise ImageReadError(f"{path}: unsupported image type {suffix!r}; use {', '.join(SUFFIXES)}")
-    if not path.is_file():
-        raise ImageReadError(f"{path}: no such file")
-    try:
-        with Image.open(path) as img:
-            if img.mode.startswith("I"):
-                arr = np.asarray(img, dtype=np.float32) / 65535.0
-            else:
-                arr = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
-    except OSError as exc:
-        raise ImageReadError(f"{path}: not a readable image ({exc})") from None
-    if arr.ndim == 2:
-        arr = np.repeat(arr[..., None], 3, axis=2)
-    return torch.from_numpy(np.ascontiguousarray(arr.transpose(2, 0, 1))).clamp(0.0, 1.0)
+    img, hdr = read_image(path)
+    chw = torch.from_numpy(img).permute(2, 0, 1).contiguous()
+    return tonemap(chw) if hdr else chw.clamp(0.0, 1.0)
 
 
 def _images(folder: Path) -> list[Path]:
