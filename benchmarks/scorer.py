@@ -2,7 +2,7 @@
 
     python benchmarks/scorer.py --out reports/scorer [--size 512 --patch-size 128 --repeats 3]
                                 [--data data/default --val-scene cornell --checkpoint-dir DIR]
-                                [--scenes cornell,caustic,door --resolution 64 --budget 20]
+                                [--scenes cornell,caustic,door --resolution 128 --budget 2 --render-repeats 3]
                                 [--skip throughput,memory,accuracy,render]
 
 Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as PNGs beside it:
@@ -19,11 +19,13 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    the true SSIM map. Without weights it prints "no weights".
 4. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
    reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
-   (no scorer), early stopping at a predicted target, and adaptive sampling, with the scorer's
-   share of the time; plus adaptive sampling driven by the true SSIM map (an oracle: the headroom
-   a perfect predictor would have). Uses the shipped ``fcnn_fast`` weights, else ``--render-checkpoint``, else an
-   untrained ``fcnn_fast`` (then only the timings mean anything, and the table says so).
-   The scorer is run on every step; adaptive steps spend as many samples as uniform ones.
+   (no scorer), early stopping at a predicted target, adaptive sampling per pixel, the same driven
+   by the true SSIM map (an oracle: the headroom a perfect predictor would have), and adaptive
+   sampling per tile (``--tile``); ``--render-repeats`` seeds each. Scoring is cadenced to stay
+   within ``--max-overhead`` of the render time; adaptive steps spend as many samples as uniform
+   ones on average. The table gives each method's error ratio to uniform at equal time and the
+   scorer's share of the time. Scorer: ``--render-checkpoint``, else the shipped ``fcnn_fast``,
+   else an untrained ``fcnn_fast`` (then only the timings mean anything, and the table says so).
 
 Run with ``--threads 1`` on a small shared CPU: at these image sizes one torch thread is much
 faster than two that compete with Mitsuba's threads and other processes.
@@ -189,10 +191,10 @@ def accuracy(args) -> str:
 def render_scorer(args) -> tuple[Scorer, str]:
     from nriqa.pretrained import list_pretrained
 
-    if "fcnn_fast" in list_pretrained():
-        return Scorer.from_pretrained("fcnn_fast"), "shipped fcnn_fast"
     if args.render_checkpoint:
         return Scorer.from_checkpoint(args.render_checkpoint), str(args.render_checkpoint)
+    if "fcnn_fast" in list_pretrained():
+        return Scorer.from_pretrained("fcnn_fast"), "shipped fcnn_fast"
     torch.manual_seed(0)
     return Scorer(create_model("fcnn_fast")), "UNTRAINED fcnn_fast (timings only; early stopping and tile choice are meaningless)"
 
@@ -218,6 +220,12 @@ class OracleScorer:
         return ScoreResult(m, float(m.mean()), "ssim", True)
 
 
+def _at(log: list[dict], seconds: float) -> float:
+    """True SSIM of the latest row at or before ``seconds`` (the image one would have had then)."""
+    rows = [r for r in log if r["seconds"] <= seconds]
+    return (rows[-1] if rows else log[0])["true"]
+
+
 def render(args, out: Path) -> str:
     import matplotlib
 
@@ -228,14 +236,13 @@ def render(args, out: Path) -> str:
     from data_gen.plan import ImageTask, Job
     from data_gen.render import scene_dict
     from data_gen.scenes import get_scene
-    from nriqa.render_loop import ensure_variant, render_adaptive, render_until
+    from nriqa.render_loop import ensure_variant, is_jit_variant, render_adaptive, render_until
 
     variant = ensure_variant(args.backend)
     scorer, label = render_scorer(args)
-    rows = []
+    rows, figures = [], []
     scenes = args.scenes.split(",")
-    # Same samples per step as a uniform step, spent on the chosen tiles only.
-    adaptive_spp = max(1, round(args.spp_per_step / args.fraction))
+    seeds = list(range(1, args.render_repeats + 1))
     fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
     for ax, name in zip(axes[0], scenes):
         spec = get_scene(name)
@@ -244,38 +251,55 @@ def render(args, out: Path) -> str:
         t0 = time.perf_counter()
         reference = np.array(mi.render(mi.load_dict(scene), spp=args.reference_spp, seed=987654), dtype=np.float32)[..., :3]
         print(f"  render {name}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-        runs = {
-            "uniform": render_until(scene, None, None, args.budget, args.spp_per_step, reference, seed=1)[1],
-            "early stop": render_until(scene, scorer, args.target, args.budget, args.spp_per_step, reference, seed=1)[1],
-            "adaptive": render_adaptive(scene, scorer, time_budget_s=args.budget, initial_spp=args.spp_per_step,
-                                        spp_per_step=adaptive_spp, tile=args.tile, fraction=args.fraction,
-                                        reference=reference, seed=1)[1],
-            "adaptive (oracle map)": render_adaptive(scene, OracleScorer(reference), time_budget_s=args.budget,
-                                                     initial_spp=args.spp_per_step, spp_per_step=adaptive_spp, tile=args.tile,
-                                                     fraction=args.fraction, reference=reference, seed=1)[1],
+        oracle = OracleScorer(reference)
+        common = dict(time_budget_s=args.budget, initial_spp=args.spp_per_step, spp_per_step=args.spp_per_step,
+                      reference=reference, max_overhead=args.max_overhead)
+        methods = {
+            "uniform": lambda seed: render_until(scene, None, None, args.budget, args.spp_per_step, reference, seed=seed),
+            "early stop": lambda seed: render_until(scene, scorer, args.target, args.budget, args.spp_per_step, reference,
+                                                    seed=seed, max_overhead=args.max_overhead),
+            "adaptive": lambda seed: render_adaptive(scene, scorer, uniform_share=args.uniform_share, seed=seed, **common),
+            "adaptive (oracle map)": lambda seed: render_adaptive(scene, oracle, uniform_share=args.uniform_share, seed=seed, **common),
         }
-        for method, log in runs.items():
-            last = log[-1]
-            share = last["score_seconds"] / last["seconds"] if last["seconds"] else 0.0
-            pred = f"{last['predicted']:.3f}" if last["predicted"] is not None else "-"
-            rows.append([name, method, len(log), f"{last['seconds']:.2f}", f"{last['spp']:.1f}", f"{last['true']:.4f}",
-                         pred, f"{100 * share:.1f} %", f"{last['setup_seconds']:.1f}", last["stop"]])
-            ax.plot([r["seconds"] for r in log], [r["true"] for r in log], marker="." if method != "uniform" else None, label=method)
-            slug = method.replace(" (oracle map)", "_oracle").replace(" ", "_")
+        if args.tile:
+            methods[f"adaptive ({args.tile}px tiles)"] = lambda seed: render_adaptive(scene, scorer, tile=args.tile,
+                                                                                     fraction=args.fraction, seed=seed, **common)
+        logs = {m: [fn(seed)[1] for seed in seeds] for m, fn in methods.items()}
+        uniform_final = [log[-1]["true"] for log in logs["uniform"]]
+        for method, runs in logs.items():
+            finals = [log[-1] for log in runs]
+            true = np.array([r["true"] for r in finals])
+            half = np.array([_at(log, args.budget / 2) for log in runs])
+            # Error ratio against uniform at the same time, per seed: < 1 means better than uniform.
+            ratio = np.array([(1 - t) / (1 - u) for t, u in zip(true, uniform_final)])
+            share = np.mean([r["score_seconds"] / r["seconds"] if r["seconds"] else 0.0 for r in finals])
+            preds = [r["predicted"] for r in finals if r["predicted"] is not None]
+            stops = sorted({r["stop"] for r in finals})
+            rows.append([name, method, f"{np.mean([r['seconds'] for r in finals]):.2f}", f"{np.mean([r['spp'] for r in finals]):.0f}",
+                         f"{half.mean():.4f}", f"{true.mean():.4f} ± {true.std():.4f}", f"{ratio.mean():.3f}",
+                         f"{np.mean(preds):.3f}" if preds else "-", f"{100 * share:.1f} %",
+                         f"{np.mean([r['setup_seconds'] for r in finals]):.1f}", "/".join(stops)])
+            log = runs[0]
+            ax.plot([r["seconds"] for r in log], [1 - r["true"] for r in log], label=method)
+            slug = method.replace(" (oracle map)", "_oracle").replace(" ", "_").replace("(", "").replace(")", "")
             (out / f"render_{name}_{slug}.json").write_text(
                 json.dumps([{k: v for k, v in r.items() if k != "spp_map"} for r in log], indent=1))
-        ax.set(title=f"{name} {args.resolution}x{args.resolution}", xlabel="seconds (render + scoring)", ylabel="true mean SSIM",
-               xscale="log")
+        ax.set(title=f"{name} {args.resolution}x{args.resolution}", xlabel="seconds (render + scoring)",
+               ylabel="1 - true mean SSIM", xscale="log", yscale="log")
         ax.grid(alpha=0.3)
         ax.legend()
     fig.tight_layout()
     fig.savefig(out / "render_loops.png", dpi=100)
     plt.close(fig)
-    note = (f"Mitsuba variant {variant}; scorer: {label}; {args.spp_per_step} spp per step; time budget {args.budget} s; "
-            f"early-stop target {args.target}; adaptive: {args.tile}px tiles, worst {args.fraction:.0%} get {adaptive_spp} spp per step; "
-            f"reference {args.reference_spp} spp. 'setup' is the untimed JIT warm-up. Plot: render_loops.png\n\n")
-    return note + md_table(["scene", "method", "steps", "seconds", "mean spp", "true SSIM", "predicted", "scorer share",
-                            "setup (s)", "stop"], rows)
+    mode = "per pixel" if is_jit_variant() else "per 16px tile (scalar variant)"
+    note = (f"Mitsuba variant {variant}; scorer: {label}; {args.resolution}x{args.resolution}; {args.spp_per_step} spp per step "
+            f"(adaptive: the same samples per step on average, {mode}, uniform share {args.uniform_share}); time budget "
+            f"{args.budget} s; scoring only while within {args.max_overhead} of render time; early-stop target {args.target}; "
+            f"reference {args.reference_spp} spp; {len(seeds)} seeds per method, mean (± std). 'error ratio' is "
+            "(1 - SSIM) over uniform's at the end of the budget, per seed, averaged (< 1: better than uniform at equal time). "
+            "'setup' is the untimed JIT warm-up. Plot (first seed): render_loops.png\n\n")
+    return note + md_table(["scene", "method", "seconds", "mean spp", "true SSIM at half", "true SSIM", "error ratio",
+                            "predicted", "scorer share", "setup (s)", "stop"], rows)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -292,12 +316,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--val-scene", default="cornell")
     ap.add_argument("--checkpoint-dir", type=Path)
     ap.add_argument("--scenes", default="cornell,caustic,door")
-    ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--reference-spp", type=int, default=4096)
-    ap.add_argument("--budget", type=float, default=5.0, help="seconds per render loop")
+    ap.add_argument("--budget", type=float, default=2.0, help="seconds per render loop")
+    ap.add_argument("--render-repeats", type=int, default=3, help="seeds per render loop")
+    ap.add_argument("--max-overhead", type=float, default=0.05, help="scorer time allowed, as a share of render time")
+    ap.add_argument("--uniform-share", type=float, default=0.5, help="adaptive: share of each step spread evenly")
     ap.add_argument("--spp-per-step", type=int, default=4)
     ap.add_argument("--target", type=float, default=0.9, help="predicted SSIM at which early stopping stops")
-    ap.add_argument("--tile", type=int, default=16)
+    ap.add_argument("--tile", type=int, default=16, help="also run adaptive per tile of this side (0: skip)")
     ap.add_argument("--fraction", type=float, default=0.25)
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--render-checkpoint", type=Path)

@@ -2,28 +2,36 @@
 
 * :func:`render_until` -- progressive rendering: passes of ``spp_per_step`` samples with fresh
   seeds, averaged, until the predicted pooled quality reaches a target or the time runs out.
-* :func:`render_adaptive` -- after a uniform first pass, each step renders ``spp_per_step`` more
-  samples only in the tiles the predicted map rates worst (film crops), keeping a per-pixel
-  sample count so each pixel holds the mean of all its samples.
+* :func:`render_adaptive` -- after a uniform first pass, each step spends as many samples as a
+  uniform step would, per pixel where the predicted map expects them to remove the most error
+  (one wavefront through the scene's integrator: a custom sampling loop in Mitsuba's Python API,
+  JIT variants), or per tile through film crops (``tile=N``; the only way in ``scalar_rgb``).
+  Every pixel keeps its sample count and the mean of its samples.
+
+Scoring costs time, so neither loop scores after every step by default: with ``max_overhead``
+(default 5 %) the scorer runs only while its total time stays within that share of the render
+time, measured as the loop goes (a 64x64 image renders 4 spp in ~20 ms; fcnn_fast scores it in
+~8 ms, so every step would cost ~30 %). Steps in between reuse the last prediction.
 
 The caller chooses the Mitsuba variant before calling, e.g. with the renderer's own choice::
 
     from data_gen.backend import init_worker, select_backend
     init_worker(select_backend("auto"), threads=2)   # llvm_ad_rgb where it works, else scalar_rgb
 
-or :func:`ensure_variant`, which does exactly that when no variant is set. Both loops work in any
-RGB variant. Scene dictionaries as built by ``data_gen.render.scene_dict`` (box pixel filter, so a
-crop's pixels equal the full frame's; other filters would blur across crop borders).
+or :func:`ensure_variant`, which does exactly that when no variant is set. Scene dictionaries as
+built by ``data_gen.render.scene_dict`` (box pixel filter: a sample counts for its own pixel
+only, which both the per-pixel loop and film crops assume; other filters would blur across).
 
 Timing: ``seconds`` in the logs is render plus scoring time. With ``llvm_ad_rgb`` every distinct
-(scene, sensor, spp) is JIT-compiled on its first render (0.3-0.8 s each on a 2-core CPU, and the
-adaptive loop has one sensor per tile), so both loops first render each once, untimed and
-discarded (``warmup=True``); the compile time is logged as ``setup_seconds`` in every row. The
-true score (``true``, when a reference is given) is computed outside the timed region.
+kernel is JIT-compiled on its first use (0.3-0.8 s each on a 2-core CPU), so both loops first run
+each once, untimed and discarded (``warmup=True``), and score the warm-up image once to learn the
+scorer's cost; that time is logged as ``setup_seconds`` in every row. The true score (``true``,
+when a reference is given) is computed outside the timed region.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Mapping
 
@@ -34,7 +42,9 @@ from nriqa.scorer import Scorer
 from nriqa.ssim import ssim_map
 from nriqa.tonemap import tonemap
 
-__all__ = ["render_until", "render_adaptive", "true_ssim", "ensure_variant"]
+__all__ = ["render_until", "render_adaptive", "true_ssim", "ensure_variant", "PixelRenderer"]
+
+log = logging.getLogger(__name__)
 
 
 def ensure_variant(requested: str = "auto", threads: int | None = None) -> str:
@@ -73,16 +83,90 @@ def _render(scene, spp: int, seed: int, sensor: int = 0) -> np.ndarray:
     return np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
 
 
-class _Clock:
-    """Render and scoring time of a loop, and the row builder of its log."""
+def is_jit_variant() -> bool:
+    """Whether the current Mitsuba variant traces wavefronts (llvm/cuda), as :class:`PixelRenderer` needs."""
+    import mitsuba as mi
 
-    def __init__(self, reference: np.ndarray | None, setup: float):
+    return mi.variant() is not None and mi.variant().startswith(("llvm_", "cuda_"))
+
+
+class PixelRenderer:
+    """Renders any number of samples in each pixel of a loaded scene's first sensor, in one call.
+
+    One wavefront holds every sample asked for: pixel indices repeated by their counts, a point
+    uniform in the pixel (box filter), a camera ray through it, the scene's integrator's
+    ``sample`` (path or volpath; not the particle tracer, which does not trace from the camera),
+    weighted by the sensor's importance. Sums per pixel are taken in numpy (``np.bincount``, a fixed
+    order: the same seed and counts give the same sums, which float atomics would not promise).
+    Needs a JIT variant (``llvm_ad_rgb``); the seed is passed as an opaque value so that a new seed
+    or a new wavefront size does not recompile the kernel.
+    """
+
+    def __init__(self, scene):
+        import mitsuba as mi
+
+        if not is_jit_variant():
+            raise RuntimeError(f"PixelRenderer needs a JIT variant such as llvm_ad_rgb, not {mi.variant()}")
+        self.scene = scene
+        self.sensor = scene.sensors()[0]
+        self.integrator = scene.integrator()
+        film = self.sensor.film()
+        self.width, self.height = (int(v) for v in film.crop_size())
+        self.offset = tuple(int(v) for v in film.crop_offset())
+        self.full = tuple(int(v) for v in film.size())
+
+    def __call__(self, counts: np.ndarray, seed: int) -> np.ndarray:
+        """Sum of ``counts[y, x]`` new samples in every pixel: ``(H, W, 3)`` float64 (non-finite samples count as 0)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        counts = np.asarray(counts)
+        if counts.shape != (self.height, self.width):
+            raise ValueError(f"counts must be {(self.height, self.width)}, got {counts.shape}")
+        pixels = self.height * self.width
+        index = np.repeat(np.arange(pixels, dtype=np.uint32), counts.reshape(-1).astype(np.int64))
+        sums = np.zeros((pixels, 3))
+        if index.size == 0:
+            return sums.reshape(self.height, self.width, 3)
+        sampler = mi.load_dict({"type": "independent"})
+        sampler.seed(dr.opaque(mi.UInt32, seed & 0xFFFFFFFF), index.size)
+        idx = mi.UInt32(index)
+        pixel = mi.Vector2f(mi.Float(idx % self.width + self.offset[0]), mi.Float(idx // self.width + self.offset[1]))
+        position = (pixel + sampler.next_2d()) / mi.ScalarVector2f(self.full)
+        time_ = self.sensor.shutter_open() + self.sensor.shutter_open_time() * sampler.next_1d()
+        ray, weight = self.sensor.sample_ray(time_, sampler.next_1d(), position, sampler.next_2d())
+        spectrum, _, _ = self.integrator.sample(self.scene, sampler, ray, self.sensor.get_medium())
+        rgb = spectrum * weight
+        dr.eval(rgb)  # one kernel for all three channels (reading .x, .y, .z lazily would trace three times)
+        values = np.nan_to_num(np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)], axis=-1), nan=0.0, posinf=0.0, neginf=0.0)
+        for c in range(3):
+            sums[:, c] = np.bincount(index, weights=values[:, c], minlength=pixels)
+        return sums.reshape(self.height, self.width, 3)
+
+
+class _Clock:
+    """Render and scoring time of a loop, the scoring cadence, and the row builder of its log."""
+
+    def __init__(self, reference: np.ndarray | None, setup: float, score_cost: float, max_overhead: float | None):
         self.render = self.score = 0.0
         self.setup = setup
+        self.score_cost = score_cost  # seconds of the last scoring (the warm-up's at first)
+        self.max_overhead = max_overhead
         self.reference = reference
         self.log: list[dict] = []
 
-    def row(self, image: np.ndarray, spp: np.ndarray | float, predicted: float | None) -> dict:
+    def score_due(self) -> bool:
+        """Whether one more scoring keeps scoring time within ``max_overhead`` of render time."""
+        return self.max_overhead is None or self.score + self.score_cost <= self.max_overhead * self.render
+
+    def scored(self, scorer, image: np.ndarray):
+        t0 = time.perf_counter()
+        result = scorer(image, hdr=True)
+        self.score_cost = time.perf_counter() - t0
+        self.score += self.score_cost
+        return result
+
+    def row(self, image: np.ndarray, spp: np.ndarray | float, predicted: float | None, scored: bool) -> dict:
         spp = np.asarray(spp, dtype=np.float64)
         row = {
             "step": len(self.log),
@@ -94,6 +178,7 @@ class _Clock:
             "spp_min": float(spp.min()),
             "spp_max": float(spp.max()),
             "predicted": predicted,
+            "scored": scored,
             "true": true_ssim(image, self.reference) if self.reference is not None else None,
         }
         self.log.append(row)
@@ -106,6 +191,11 @@ def _reached(scorer: Scorer, predicted: float, target: float | None) -> bool:
     return predicted >= target if scorer.higher_is_better else predicted <= target
 
 
+def _check_overhead(max_overhead: float | None) -> None:
+    if max_overhead is not None and not max_overhead > 0:
+        raise ValueError(f"max_overhead must be > 0 or None (score every step), got {max_overhead}")
+
+
 def render_until(
     scene,
     scorer: Scorer | None,
@@ -115,15 +205,17 @@ def render_until(
     reference: np.ndarray | None = None,
     *,
     max_spp: int | None = None,
+    max_overhead: float | None = 0.05,
     seed: int = 0,
     warmup: bool = True,
 ) -> tuple[np.ndarray, list[dict]]:
     """Progressive rendering until the predicted quality reaches ``target_score`` (early stopping).
 
     Each step renders ``spp_per_step`` samples per pixel with a new seed and folds them into the
-    running mean; then the scorer rates the mean (as linear HDR). The loop stops after the first
-    step whose predicted pooled score reaches the target (``>=`` for SSIM, ``<=`` for the patch
-    model's MAE), when the time budget (render + scoring seconds) is spent, or at ``max_spp``.
+    running mean; then, when scoring is due (see ``max_overhead``), the scorer rates the mean (as
+    linear HDR). The loop stops after the first scoring whose predicted pooled score reaches the
+    target (``>=`` for SSIM, ``<=`` for the patch model's MAE), when the time budget (render +
+    scoring seconds) is spent, or at ``max_spp``.
 
     Args:
         scene: a Mitsuba scene dict (with film and sampler) or a loaded ``mi.Scene``.
@@ -134,25 +226,36 @@ def render_until(
         spp_per_step: samples per pixel per step.
         reference: converged ``(H, W, 3)`` linear image; adds the true mean SSIM to every row.
         max_spp: stop at this many samples per pixel.
+        max_overhead: score only while scoring time stays within this share of render time
+            (the cost of a scoring is the last one's); ``None`` scores after every step. The
+            stop can come up to that many steps late: the price of a bounded overhead.
         seed: seed of the first step; step ``k`` uses ``seed + k``.
-        warmup: render once, untimed and discarded, to JIT-compile the kernel (LLVM variants).
+        warmup: render once, untimed and discarded, to JIT-compile the kernel (LLVM variants),
+            and score that image once to learn the scorer's cost.
 
     Returns:
         ``(image, log)``: the ``(H, W, 3)`` float32 linear mean, and one dict per step with
         ``step, seconds, render_seconds, score_seconds, setup_seconds, spp, spp_min, spp_max,
-        predicted, true`` (``predicted``/``true`` are ``None`` without scorer/reference) and, in the
-        last row, ``stop``: ``"target"``, ``"time"`` or ``"max_spp"``.
+        predicted, scored, true`` (``predicted`` is the latest prediction, ``scored`` whether this
+        step made it; ``predicted``/``true`` are ``None`` without scorer/reference) and, in the last
+        row, ``stop``: ``"target"``, ``"time"`` or ``"max_spp"``.
     """
+    _check_overhead(max_overhead)
     loaded = _load(scene)
-    setup = 0.0
+    setup = cost = 0.0
     if warmup:
         t0 = time.perf_counter()
-        _render(loaded, spp_per_step, seed=2**31 - 1)
+        img = _render(loaded, spp_per_step, seed=2**31 - 1)
+        if scorer is not None:
+            t1 = time.perf_counter()
+            scorer(img, hdr=True)
+            cost = time.perf_counter() - t1
         setup = time.perf_counter() - t0
-    clock = _Clock(reference, setup)
+    clock = _Clock(reference, setup, cost, max_overhead)
     mean: np.ndarray | None = None
     spp = 0
     step = 0
+    predicted = None
     while True:
         t0 = time.perf_counter()
         img = _render(loaded, spp_per_step, seed=seed + step)
@@ -160,17 +263,16 @@ def render_until(
         step += 1
         mean = img if mean is None else mean + (img - mean) * (spp_per_step / (spp + spp_per_step))
         spp += spp_per_step
-        predicted = None
-        if scorer is not None:
-            t0 = time.perf_counter()
-            predicted = scorer(mean, hdr=True).score
-            clock.score += time.perf_counter() - t0
-        row = clock.row(mean, spp, predicted)
-        if scorer is not None and _reached(scorer, predicted, target_score):
+        last_step = max_spp is not None and spp + spp_per_step > max_spp
+        scored = scorer is not None and (clock.score_due() or last_step)
+        if scored:
+            predicted = clock.scored(scorer, mean).score
+        row = clock.row(mean, spp, predicted, scored)
+        if scored and _reached(scorer, predicted, target_score):
             row["stop"] = "target"
         elif row["seconds"] >= time_budget_s:
             row["stop"] = "time"
-        elif max_spp is not None and spp + spp_per_step > max_spp:
+        elif last_step:
             row["stop"] = "max_spp"
         if "stop" in row:
             return mean, clock.log
@@ -203,6 +305,14 @@ def _sensor_index(loaded) -> dict[tuple[int, int, int, int], int]:
     return index
 
 
+def _error(qmap: np.ndarray, higher_is_better: bool) -> np.ndarray:
+    """Predicted error per pixel, ``1 - SSIM`` or the MAE, finite and >= 0 (NaN counts as the worst seen)."""
+    error = 1.0 - np.asarray(qmap, dtype=np.float64) if higher_is_better else np.asarray(qmap, dtype=np.float64)
+    finite = np.isfinite(error)
+    worst = float(error[finite].max()) if finite.any() else 1.0
+    return np.clip(np.where(finite, error, worst), 0.0, None)
+
+
 def _expected_gain(qmap: np.ndarray, count: np.ndarray, tiles, k: int, higher_is_better: bool) -> np.ndarray:
     """Per tile, the predicted error times the share of noise ``k`` more samples would remove.
 
@@ -211,94 +321,142 @@ def _expected_gain(qmap: np.ndarray, count: np.ndarray, tiles, k: int, higher_is
     this rather than by the error alone keeps the loop from pouring samples into a tile that is
     hard but already well sampled.
     """
+    error = _error(qmap, higher_is_better)
     gains = []
     for x, y, w, h in tiles:
-        q = float(qmap[y : y + h, x : x + w].mean())
+        e = float(error[y : y + h, x : x + w].mean())
         n = float(count[y : y + h, x : x + w].mean())
-        error = 1.0 - q if higher_is_better else q
-        gains.append(max(error, 0.0) * (1.0 - np.sqrt(n / (n + k))))
+        gains.append(e * (1.0 - np.sqrt(n / (n + k))))
     return np.array(gains)
 
 
+def allocate_samples(
+    noise: np.ndarray, count: np.ndarray, budget: int, alpha: float, uniform_share: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Integer samples per pixel for one step of ``budget`` samples in all.
+
+    Model: a pixel's error falls as ``e = a / n**alpha`` with its sample count ``n`` (``a``: the
+    pixel's ``noise``, its error at one sample). Minimising the summed error over pixels for a
+    given total ``N`` puts ``n_p = N * w_p / sum(w)`` samples in pixel ``p`` with
+    ``w = a ** (1 / (1 + alpha))`` (Lagrange). Each step moves towards that: the adaptive part of
+    the budget goes to the pixels below their share of the new total, in proportion to their
+    shortfall; ``uniform_share`` of it is spread evenly (the map is a prediction: every pixel keeps
+    being sampled). Fractions are rounded at random with ``rng`` (deterministic for a seed).
+    """
+    if not 0.0 <= uniform_share <= 1.0:
+        raise ValueError(f"uniform_share must be in [0, 1], got {uniform_share}")
+    pixels = count.size
+    weight = np.power(np.clip(np.nan_to_num(noise, nan=0.0, posinf=0.0), 0.0, None), 1.0 / (1.0 + alpha))
+    adaptive = budget * (1.0 - uniform_share)
+    extra = np.full(count.shape, budget * uniform_share / pixels)
+    if weight.sum() > 0:
+        shortfall = np.clip((count.sum() + adaptive) * weight / weight.sum() - count, 0.0, None)
+        extra += adaptive * (shortfall / shortfall.sum() if shortfall.sum() > 0 else weight / weight.sum())
+    else:
+        extra += adaptive / pixels
+    whole = np.floor(extra)
+    return (whole + (rng.random(count.shape) < extra - whole)).astype(np.int64)
+
+
 def render_adaptive(
-    scene: Mapping,
+    scene,
     scorer: Scorer,
     total_spp: float | None = None,
     time_budget_s: float | None = None,
     *,
     initial_spp: int = 4,
     spp_per_step: int = 4,
-    tile: int = 16,
+    tile: int | None = None,
+    uniform_share: float = 0.25,
     fraction: float = 0.25,
+    max_overhead: float | None = 0.05,
     reference: np.ndarray | None = None,
     seed: int = 0,
     warmup: bool = True,
 ) -> tuple[np.ndarray, list[dict]]:
-    """Adaptive sampling: spend samples on the tiles the predicted map rates worst.
+    """Adaptive sampling: spend samples where the predicted map expects them to remove the most error.
 
-    A uniform pass of ``initial_spp`` samples, then per step: score the current mean, split the
-    map into ``tile`` x ``tile`` tiles, rank them by expected gain -- mean predicted error
-    (``1 - SSIM``, or the patch model's MAE) times ``1 - sqrt(n / (n + k))``, the share of the
-    noise ``k = spp_per_step`` more samples remove at ``n`` samples -- and render ``k`` more samples
-    in the best ``fraction`` of tiles (at least one), each through a film crop (``crop_offset_x/y``,
-    ``crop_width/height``): the scene is loaded once with one extra sensor per tile, a copy of
-    ``scene["sensor"]`` with its film cropped, and every render call gets its own seed. Every
-    pixel keeps its sample count ``n`` and the mean of its samples:
-    ``mean <- mean + (batch_mean - mean) * k / (n + k)`` for a batch of ``k`` samples.
+    A uniform pass of ``initial_spp`` samples, then per step ``spp_per_step`` samples per pixel on
+    average (a uniform step's worth), placed by the latest predicted map:
+
+    * per pixel (``tile=None``, JIT variants): the scorer's error (``1 - SSIM``, or the patch
+      model's MAE) at the pixel's count ``n`` gives its noise ``a = error * n**alpha`` (``alpha``
+      1 for SSIM, whose error goes as the noise variance; 1/2 for the MAE); the samples go by
+      :func:`allocate_samples` and are rendered in one :class:`PixelRenderer` wavefront.
+    * per tile (``tile=N``; the fallback in ``scalar_rgb``): tiles of ``N`` x ``N`` pixels ranked by
+      mean error times ``1 - sqrt(n / (n + k))``, the share of the noise ``k`` more samples remove,
+      and the best ``fraction`` of them get ``k = spp_per_step / fraction`` samples, each through a
+      film crop (one extra sensor per tile; each ``mi.render`` call costs tens of ms whatever its
+      size, so small tiles lose to uniform rendering at equal time).
+
+    Every pixel keeps its sample count and the mean of its samples. The map is re-predicted when
+    scoring is due (``max_overhead``); in between, the counts added since keep the error model
+    current (``error = a / n**alpha``).
 
     Stops when the mean samples per pixel reach ``total_spp`` or the render + scoring time reaches
     ``time_budget_s`` (give at least one).
 
     Args:
-        scene: a Mitsuba scene *dict* with ``sensor.film`` (width, height; box filter) and sampler;
-            a dict, not a loaded scene, because a cropped sensor per tile is added to it.
-        scorer: the :class:`~nriqa.scorer.Scorer` whose map chooses the tiles.
+        scene: a Mitsuba scene dict with ``sensor.film`` (box filter) and sampler; per pixel also a
+            loaded ``mi.Scene``, per tile a dict only (a cropped sensor per tile is added to it).
+        scorer: the :class:`~nriqa.scorer.Scorer` whose map places the samples.
         total_spp: budget in mean samples per pixel.
         time_budget_s: budget in seconds (render + scoring).
         initial_spp: samples per pixel of the uniform first pass.
-        spp_per_step: samples per pixel added to each chosen tile per step.
-        tile: tile side in pixels (edge tiles may be smaller).
-        fraction: share of tiles refined per step, in (0, 1].
+        spp_per_step: mean samples per pixel added per step.
+        tile: ``None`` for per-pixel sampling, else the tile side in pixels (edge tiles may be smaller).
+        uniform_share: per pixel, the share of each step's samples spread evenly, in [0, 1].
+        fraction: per tile, the share of tiles refined per step, in (0, 1].
+        max_overhead: as for :func:`render_until`; the first map is always predicted.
         reference: converged ``(H, W, 3)`` image; adds the true mean SSIM to every row.
         seed: base seed; every render call gets a distinct one.
-        warmup: render with every sensor once, untimed, to JIT-compile its kernel (LLVM variants).
+        warmup: run every kernel once, untimed (LLVM variants), and score once to learn the cost.
 
     Returns:
         ``(image, log)`` as for :func:`render_until` (``spp`` is the mean over pixels); the last
         row's ``stop`` is ``"spp"`` or ``"time"``, and ``spp_map`` in it holds the ``(H, W)`` counts.
     """
-    if not isinstance(scene, Mapping):
-        raise TypeError("render_adaptive needs the scene as a dict (a cropped sensor per tile is added to it), not a loaded scene")
     if total_spp is None and time_budget_s is None:
         raise ValueError("render_adaptive needs a budget: total_spp, time_budget_s or both")
-    if not 0 < fraction <= 1:
-        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
-    film = scene["sensor"]["film"]
-    width, height = int(film["width"]), int(film["height"])
-    tiles = _tiles(width, height, tile)
-    loaded = _load(_with_tile_sensors(scene, tiles))
-    index = _sensor_index(loaded)
-    full, crops = index[(0, 0, width, height)], [index[t] for t in tiles]
-    setup = 0.0
+    _check_overhead(max_overhead)
+    if tile is None and not is_jit_variant():
+        import mitsuba as mi
+
+        log.warning("per-pixel adaptive sampling needs a JIT variant (llvm_ad_rgb), not %s: using 16x16 tiles", mi.variant())
+        tile = 16
+    if tile is not None:
+        return _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction,
+                               max_overhead, reference, seed, warmup)
+    renderer = PixelRenderer(_load(scene))
+    height, width = renderer.height, renderer.width
+    alpha = 1.0 if scorer.higher_is_better else 0.5
+    rng = np.random.default_rng(seed)
+    budget = spp_per_step * height * width
+    setup = cost = 0.0
     if warmup:
         t0 = time.perf_counter()
-        _render(loaded, initial_spp, seed=2**31 - 1, sensor=full)
-        for c in crops:
-            _render(loaded, spp_per_step, seed=2**31 - 1, sensor=c)
+        sums = renderer(np.full((height, width), initial_spp), seed=2**31 - 1)
+        renderer(np.full((height, width), spp_per_step), seed=2**31 - 2)
+        t1 = time.perf_counter()
+        scorer((sums / initial_spp).astype(np.float32), hdr=True)
+        cost = time.perf_counter() - t1
         setup = time.perf_counter() - t0
-    clock = _Clock(reference, setup)
+    clock = _Clock(reference, setup, cost, max_overhead)
 
     t0 = time.perf_counter()
-    mean = _render(loaded, initial_spp, seed=seed, sensor=full)
-    clock.render += time.perf_counter() - t0
+    sums = renderer(np.full((height, width), initial_spp), seed=seed)
     count = np.full((height, width), float(initial_spp))
+    mean = (sums / count[..., None]).astype(np.float32)
+    clock.render += time.perf_counter() - t0
     calls = 1
-    n_refine = max(1, int(round(fraction * len(tiles))))
+    noise = predicted = None
     while True:
-        t0 = time.perf_counter()
-        result = scorer(mean, hdr=True)
-        clock.score += time.perf_counter() - t0
-        row = clock.row(mean, count, result.score)
+        scored = noise is None or clock.score_due()
+        if scored:
+            result = clock.scored(scorer, mean)
+            predicted = result.score
+            noise = _error(result.map, scorer.higher_is_better) * count**alpha
+        row = clock.row(mean, count, predicted, scored)
         if total_spp is not None and count.mean() >= total_spp:
             row["stop"] = "spp"
         elif time_budget_s is not None and row["seconds"] >= time_budget_s:
@@ -306,13 +464,68 @@ def render_adaptive(
         if "stop" in row:
             row["spp_map"] = count
             return mean, clock.log
-        order = np.argsort(-_expected_gain(result.map, count, tiles, spp_per_step, scorer.higher_is_better), kind="stable")
+        t0 = time.perf_counter()
+        extra = allocate_samples(noise, count, budget, alpha, uniform_share, rng)
+        sums += renderer(extra, seed=seed + calls)
+        calls += 1
+        count += extra
+        mean = (sums / count[..., None]).astype(np.float32)
+        clock.render += time.perf_counter() - t0
+
+
+def _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction, max_overhead,
+                    reference, seed, warmup):
+    """:func:`render_adaptive` per tile, through film crops."""
+    if not isinstance(scene, Mapping):
+        raise TypeError("render_adaptive with tiles needs the scene as a dict (a cropped sensor per tile is added to it), not a loaded scene")
+    if not 0 < fraction <= 1:
+        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
+    film = scene["sensor"]["film"]
+    width, height = int(film["width"]), int(film["height"])
+    tiles = _tiles(width, height, tile)
+    n_refine = max(1, int(round(fraction * len(tiles))))
+    k = max(1, round(spp_per_step * len(tiles) / n_refine))  # a uniform step's samples, on the chosen tiles
+    loaded = _load(_with_tile_sensors(scene, tiles))
+    index = _sensor_index(loaded)
+    full, crops = index[(0, 0, width, height)], [index[t] for t in tiles]
+    setup = cost = 0.0
+    if warmup:
+        t0 = time.perf_counter()
+        img = _render(loaded, initial_spp, seed=2**31 - 1, sensor=full)
+        for c in crops:
+            _render(loaded, k, seed=2**31 - 1, sensor=c)
+        t1 = time.perf_counter()
+        scorer(img, hdr=True)
+        cost = time.perf_counter() - t1
+        setup = time.perf_counter() - t0
+    clock = _Clock(reference, setup, cost, max_overhead)
+
+    t0 = time.perf_counter()
+    mean = _render(loaded, initial_spp, seed=seed, sensor=full)
+    clock.render += time.perf_counter() - t0
+    count = np.full((height, width), float(initial_spp))
+    calls = 1
+    qmap = predicted = None
+    while True:
+        scored = qmap is None or clock.score_due()
+        if scored:
+            result = clock.scored(scorer, mean)
+            qmap, predicted = result.map, result.score
+        row = clock.row(mean, count, predicted, scored)
+        if total_spp is not None and count.mean() >= total_spp:
+            row["stop"] = "spp"
+        elif time_budget_s is not None and row["seconds"] >= time_budget_s:
+            row["stop"] = "time"
+        if "stop" in row:
+            row["spp_map"] = count
+            return mean, clock.log
+        order = np.argsort(-_expected_gain(qmap, count, tiles, k, scorer.higher_is_better), kind="stable")
         t0 = time.perf_counter()
         for i in order[:n_refine]:
             x, y, w, h = tiles[i]
-            img = _render(loaded, spp_per_step, seed=seed + calls, sensor=crops[i])
+            img = _render(loaded, k, seed=seed + calls, sensor=crops[i])
             calls += 1
             n = count[y : y + h, x : x + w, None]
-            mean[y : y + h, x : x + w] += (img - mean[y : y + h, x : x + w]) * (spp_per_step / (n + spp_per_step))
-            count[y : y + h, x : x + w] += spp_per_step
+            mean[y : y + h, x : x + w] += (img - mean[y : y + h, x : x + w]) * (k / (n + k))
+            count[y : y + h, x : x + w] += k
         clock.render += time.perf_counter() - t0

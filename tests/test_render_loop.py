@@ -1,4 +1,5 @@
-"""Render loops on a tiny Cornell box (32x32, scalar_rgb: no JIT compile, fast at this size)."""
+"""Render loops on a tiny Cornell box (32x32): scalar_rgb (no JIT compile, fast at this size) for the
+loops and tiles; llvm_ad_rgb, where it works, for per-pixel sampling (PixelRenderer)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from data_gen.backend import SCALAR_VARIANT, init_worker  # noqa: E402
 from data_gen.plan import ImageTask, Job  # noqa: E402
 from data_gen.render import scene_dict  # noqa: E402
 from nriqa.models import create_model  # noqa: E402
-from nriqa.render_loop import _expected_gain, render_adaptive, render_until, true_ssim  # noqa: E402
+from nriqa.render_loop import PixelRenderer, _expected_gain, allocate_samples, render_adaptive, render_until, true_ssim  # noqa: E402
 from nriqa.scorer import Scorer, ScoreResult  # noqa: E402
 
 SIZE = 32
@@ -60,10 +61,11 @@ pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def test_render_until_runs_to_max_spp(scene, scorer, reference):
-    image, log = render_until(scene, scorer, target_score=None, time_budget_s=60, spp_per_step=2, reference=reference, max_spp=8)
+    image, log = render_until(scene, scorer, target_score=None, time_budget_s=60, spp_per_step=2, reference=reference,
+                              max_spp=8, max_overhead=None)
     assert image.shape == (SIZE, SIZE, 3) and np.isfinite(image).all()
     assert [r["spp"] for r in log] == [2, 4, 6, 8] and log[-1]["stop"] == "max_spp"
-    assert all(np.isfinite(r["predicted"]) for r in log)
+    assert all(np.isfinite(r["predicted"]) and r["scored"] for r in log)
     assert log[-1]["true"] == pytest.approx(true_ssim(image, reference))
     assert log[-1]["true"] > log[0]["true"]  # more samples, closer to the reference
     assert all(b["seconds"] >= a["seconds"] for a, b in zip(log, log[1:]))
@@ -72,9 +74,39 @@ def test_render_until_runs_to_max_spp(scene, scorer, reference):
 
 def test_render_until_stops_at_target(scene, reference):
     oracle = OracleScorer(reference)
-    _, log = render_until(scene, oracle, target_score=0.5, time_budget_s=60, spp_per_step=2, max_spp=256)
+    _, log = render_until(scene, oracle, target_score=0.5, time_budget_s=60, spp_per_step=2, max_spp=256, max_overhead=None)
     assert log[-1]["stop"] == "target" and log[-1]["predicted"] >= 0.5
     assert all(r["predicted"] < 0.5 for r in log[:-1])
+
+
+class SlowScorer(OracleScorer):
+    """The oracle, made to cost ``delay`` seconds per call."""
+
+    def __init__(self, reference, delay):
+        super().__init__(reference)
+        self.delay = delay
+        self.calls = 0
+
+    def __call__(self, image, *, hdr=None):
+        import time
+
+        self.calls += 1
+        time.sleep(self.delay)
+        return super().__call__(image, hdr=hdr)
+
+
+def test_render_until_bounds_the_scorer_overhead(scene, reference):
+    # A scorer that costs about as much as several render steps may only run now and then.
+    slow = SlowScorer(reference, delay=0.02)
+    _, log = render_until(scene, slow, target_score=None, time_budget_s=60, spp_per_step=2, max_spp=64, max_overhead=0.1)
+    last = log[-1]
+    assert last["score_seconds"] <= 0.1 * last["render_seconds"] + 0.03  # the last step always scores
+    assert 1 <= slow.calls - 1 < len(log)  # minus the warm-up scoring
+    assert sum(r["scored"] for r in log) == slow.calls - 1 and last["scored"]
+    unscored = [r for r in log if not r["scored"]]
+    assert unscored and all(r["predicted"] is None or np.isfinite(r["predicted"]) for r in unscored)
+    with pytest.raises(ValueError, match="max_overhead"):
+        render_until(scene, slow, None, 1, max_overhead=0)
 
 
 def test_render_until_time_budget_and_uniform_baseline(scene):
@@ -84,7 +116,8 @@ def test_render_until_time_budget_and_uniform_baseline(scene):
 
 def test_render_adaptive_refines_some_tiles_only(scene, reference):
     oracle = OracleScorer(reference)
-    image, log = render_adaptive(scene, oracle, total_spp=7, initial_spp=4, spp_per_step=4, tile=16, fraction=0.25, reference=reference)
+    image, log = render_adaptive(scene, oracle, total_spp=7, initial_spp=4, spp_per_step=1, tile=16, fraction=0.25,
+                                 reference=reference, max_overhead=None)
     counts = log[-1]["spp_map"]
     assert log[-1]["stop"] == "spp" and counts.mean() >= 7 and np.isfinite(image).all()
     assert log[-1]["spp"] == pytest.approx(counts.mean())
@@ -105,7 +138,7 @@ def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
     with pytest.raises(ValueError, match="budget"):
         render_adaptive(scene, scorer)
     with pytest.raises(TypeError, match="dict"):
-        render_adaptive(mi.load_dict(scene), scorer, total_spp=4)
+        render_adaptive(mi.load_dict(scene), scorer, total_spp=4, tile=16)
 
 
 def test_expected_gain_prefers_worse_and_less_sampled_tiles():
@@ -116,3 +149,89 @@ def test_expected_gain_prefers_worse_and_less_sampled_tiles():
     assert gain[1] > gain[0] and gain[1] > gain[2]  # worse than tile 0, fewer samples than tile 2
     mae_gain = _expected_gain(1 - qmap, count, tiles, 4, higher_is_better=False)
     np.testing.assert_allclose(mae_gain, gain)
+
+
+def test_allocate_samples_spends_the_budget_where_the_noise_is():
+    rng = np.random.default_rng(0)
+    noise = np.ones((8, 8))
+    noise[:, 4:] = 16.0  # right half: 16x the error at one sample
+    count = np.full((8, 8), 4.0)
+    extra = allocate_samples(noise, count, budget=256, alpha=1.0, uniform_share=0.25, rng=rng)
+    assert extra.dtype == np.int64 and (extra >= 0).all()
+    assert abs(int(extra.sum()) - 256) <= 16  # random rounding: the budget on average
+    assert extra[:, 4:].sum() > 2 * extra[:, :4].sum()
+    assert (extra[:, :4] >= 0).all() and extra[:, :4].sum() > 0  # the uniform share reaches every half
+    # Long run: the counts approach the optimum n ~ a ** (1 / (1 + alpha)): ratio sqrt(16) = 4.
+    for _ in range(200):
+        count += allocate_samples(noise, count, 256, 1.0, 0.0, rng)
+    assert count[:, 4:].mean() / count[:, :4].mean() == pytest.approx(4.0, rel=0.1)
+
+
+@pytest.mark.parametrize("noise", [np.zeros((4, 4)), np.full((4, 4), np.nan), np.full((4, 4), np.inf)])
+def test_allocate_samples_degenerate_maps_fall_back_to_uniform(noise):
+    extra = allocate_samples(noise, np.full((4, 4), 2.0), budget=64, alpha=1.0, uniform_share=0.25, rng=np.random.default_rng(1))
+    assert (extra == 4).all()
+
+
+def test_allocate_samples_is_deterministic():
+    noise = np.random.default_rng(3).random((16, 16))
+    a, b = (allocate_samples(noise, np.full((16, 16), 4.0), 700, 0.5, 0.3, np.random.default_rng(9)) for _ in range(2))
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="uniform_share"):
+        allocate_samples(noise, np.ones((16, 16)), 10, 1.0, 1.5, np.random.default_rng(0))
+
+
+@pytest.fixture(scope="module")
+def llvm_scene():
+    """The test scene in llvm_ad_rgb (skipped where libLLVM 19 is missing: CI installs it)."""
+    from data_gen.backend import LLVM_VARIANT, probe_llvm
+
+    ok, reason = probe_llvm()
+    if not ok:
+        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
+    previous = mi.variant()
+    init_worker(LLVM_VARIANT, 1)
+    job = Job("cornell", 0, 7, "path_independent", (SIZE, SIZE), 6, ())
+    scene = scene_dict(job, ImageTask("t", "test", 4, 1, "t.exr", "r.exr"))
+    reference = np.array(mi.render(mi.load_dict(scene), spp=256, seed=12345), dtype=np.float32)[..., :3]
+    yield scene, reference
+    mi.set_variant(previous or SCALAR_VARIANT)
+
+
+def test_pixel_renderer_matches_mi_render_and_is_deterministic(llvm_scene):
+    scene, reference = llvm_scene
+    renderer = PixelRenderer(mi.load_dict(scene))
+    counts = np.full((SIZE, SIZE), 64)
+    ours = renderer(counts, seed=1) / 64
+    theirs = np.array(mi.render(mi.load_dict(scene), spp=64, seed=2), dtype=np.float64)[..., :3]
+    # Same estimator, different samples: image means agree within noise, and both are close to the reference.
+    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
+    assert ours.mean() == pytest.approx(reference.mean(), rel=0.03)
+    assert true_ssim(ours.astype(np.float32), reference) == pytest.approx(true_ssim(theirs.astype(np.float32), reference), abs=0.03)
+    np.testing.assert_array_equal(renderer(counts, seed=5), renderer(counts, seed=5))
+    assert not np.array_equal(renderer(counts, seed=5), renderer(counts, seed=6))
+    # Counts per pixel are honoured: zero samples give zero, a pixel's sum scales with its count.
+    mixed = np.zeros((SIZE, SIZE), dtype=int)
+    mixed[:, SIZE // 2 :] = 16
+    sums = renderer(mixed, seed=3)
+    assert (sums[:, : SIZE // 2] == 0).all() and sums[:, SIZE // 2 :].sum() > 0
+    with pytest.raises(ValueError, match="counts"):
+        renderer(np.ones((2, 2), dtype=int), seed=0)
+
+
+def test_render_adaptive_per_pixel(llvm_scene):
+    scene, reference = llvm_scene
+    oracle = OracleScorer(reference)
+    image, log = render_adaptive(scene, oracle, total_spp=24, initial_spp=4, spp_per_step=4, reference=reference, seed=3)
+    counts = log[-1]["spp_map"]
+    assert log[-1]["stop"] == "spp" and counts.mean() >= 24 and np.isfinite(image).all()
+    assert counts.min() >= 4 + 3 and counts.max() > 2 * counts.min()  # uniform share everywhere, more where it is worse
+    assert log[-1]["true"] > log[0]["true"]
+    assert log[-1]["spp"] == pytest.approx(counts.mean())
+    # Determinism: same seed, same image and counts (the clock does not steer anything with max_overhead=None).
+    again, log2 = render_adaptive(scene, oracle, total_spp=24, initial_spp=4, spp_per_step=4, reference=reference, seed=3,
+                                  max_overhead=None)
+    first, log1 = render_adaptive(scene, oracle, total_spp=24, initial_spp=4, spp_per_step=4, reference=reference, seed=3,
+                                  max_overhead=None)
+    np.testing.assert_array_equal(again, first)
+    np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
