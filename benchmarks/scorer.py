@@ -172,20 +172,48 @@ def accuracy(args) -> str:
         truth_maps.append(ssim_map(x, y)[0, 0])
         truth_mae.append(float((x - y).abs().mean()))
         noisy.append(x[0].permute(1, 2, 0).numpy())  # already tone-mapped: score as LDR
-    rows = []
+    rows, points = [], []
+    pixels = sum(img.shape[0] * img.shape[1] for img in noisy)
     for label, scorer in scorers.items():
-        preds = [scorer(img, hdr=False) for img in noisy]
-        pooled = torch.tensor([p.score for p in preds])
-        if scorer.quantity == "ssim":
-            truth = torch.tensor([float(m.mean()) for m in truth_maps])
-            pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
-            pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
-            pixel = f"{pcc(pix_p, pix_t):.3f}"
-        else:
-            truth, pixel = torch.tensor(truth_mae), "-"
-        rows.append([label, scorer.quantity, len(tests), f"{srocc(pooled, truth):.3f}", pixel])
-    return f"scene {args.val_scene}, {len(tests)} test images of {args.data}\n\n" + md_table(
-        ["weights", "predicts", "images", "image SROCC", "pixel PCC (SSIM map)"], rows)
+        for stride in (args.patch_strides if scorer.output == "patch" else [None]):
+            if stride is not None:
+                scorer.stride = stride
+            t0 = time.perf_counter()
+            preds = [scorer(img, hdr=False) for img in noisy]
+            mpix = pixels / (time.perf_counter() - t0) / 1e6
+            pooled = torch.tensor([p.score for p in preds])
+            if scorer.quantity == "ssim":
+                truth = torch.tensor([float(m.mean()) for m in truth_maps])
+                pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
+                pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
+                pixel = f"{pcc(pix_p, pix_t):.3f}"
+            else:
+                truth, pixel = torch.tensor(truth_mae), "-"
+            rho = float(srocc(pooled, truth))
+            name = label if stride is None else f"{label} (stride {stride})"
+            rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", pixel, f"{mpix:.3g}"])
+            points.append((name, mpix, rho))
+    _frontier_plot(points, args.out / "frontier.png", args.val_scene)
+    return (f"scene {args.val_scene}, {len(tests)} test images of {args.data}; Mpix/s: scoring these images "
+            "(tone-mapped, as LDR) one by one in this run. Plot: frontier.png\n\n") + md_table(
+        ["weights", "predicts", "images", "image SROCC", "pixel PCC (SSIM map)", "Mpix/s"], rows)
+
+
+def _frontier_plot(points, path: Path, scene: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, mpix, rho in points:
+        ax.scatter(mpix, rho)
+        ax.annotate(name, (mpix, rho), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    ax.set(xscale="log", xlabel="Mpix/s (this CPU)", ylabel=f"image SROCC, held-out {scene}", title="accuracy / run-time frontier")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
 
 def render_scorer(args) -> tuple[Scorer, str]:
@@ -315,6 +343,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--data", type=Path)
     ap.add_argument("--val-scene", default="cornell")
     ap.add_argument("--checkpoint-dir", type=Path)
+    ap.add_argument("--patch-strides", type=lambda v: [int(x) for x in v.split(",")], default=[16, 8],
+                    help="accuracy: strides for patch-model weights (stride 1 costs ~40 s per 128x128 image)")
     ap.add_argument("--scenes", default="cornell,caustic,door")
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--reference-spp", type=int, default=4096)

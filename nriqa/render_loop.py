@@ -110,6 +110,9 @@ class PixelRenderer:
         self.scene = scene
         self.sensor = scene.sensors()[0]
         self.integrator = scene.integrator()
+        if not isinstance(self.integrator, mi.SamplingIntegrator):
+            raise ValueError(f"per-pixel sampling traces from the camera and needs a sampling integrator (path, volpath), "
+                             f"not {type(self.integrator).__name__}; use render_adaptive(..., tile=N)")
         film = self.sensor.film()
         self.width, self.height = (int(v) for v in film.crop_size())
         self.offset = tuple(int(v) for v in film.crop_offset())

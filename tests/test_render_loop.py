@@ -217,6 +217,8 @@ def test_pixel_renderer_matches_mi_render_and_is_deterministic(llvm_scene):
     assert (sums[:, : SIZE // 2] == 0).all() and sums[:, SIZE // 2 :].sum() > 0
     with pytest.raises(ValueError, match="counts"):
         renderer(np.ones((2, 2), dtype=int), seed=0)
+    with pytest.raises(ValueError, match="sampling integrator"):
+        PixelRenderer(mi.load_dict({**scene, "integrator": {"type": "ptracer", "max_depth": 6}}))
 
 
 def test_render_adaptive_per_pixel(llvm_scene):
