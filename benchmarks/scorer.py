@@ -292,7 +292,10 @@ def render(args, out: Path) -> str:
         if args.tile:
             methods[f"adaptive ({args.tile}px tiles)"] = lambda seed: render_adaptive(scene, scorer, tile=args.tile,
                                                                                      fraction=args.fraction, seed=seed, **common)
-        logs = {m: [fn(seed)[1] for seed in seeds] for m, fn in methods.items()}
+        logs: dict[str, list] = {m: [] for m in methods}
+        for seed in seeds:  # methods interleaved, so that a change in machine load hits them alike
+            for m, fn in methods.items():
+                logs[m].append(fn(seed)[1])
         uniform_final = [log[-1]["true"] for log in logs["uniform"]]
         for method, runs in logs.items():
             finals = [log[-1] for log in runs]
