@@ -370,7 +370,7 @@ def render_adaptive(
     initial_spp: int = 4,
     spp_per_step: int = 4,
     tile: int | None = None,
-    uniform_share: float = 0.25,
+    uniform_share: float = 0.5,
     fraction: float = 0.25,
     max_overhead: float | None = 0.05,
     reference: np.ndarray | None = None,
