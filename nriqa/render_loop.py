@@ -361,6 +361,18 @@ def allocate_samples(
     return (whole + (rng.random(count.shape) < extra - whole)).astype(np.int64)
 
 
+def _budget_spent(row: dict, count: np.ndarray, total_spp: float | None, time_budget_s: float | None) -> bool:
+    """Whether an adaptive loop's budget is spent; if so, mark ``row`` with its stop and the count map."""
+    if total_spp is not None and count.mean() >= total_spp:
+        row["stop"] = "spp"
+    elif time_budget_s is not None and row["seconds"] >= time_budget_s:
+        row["stop"] = "time"
+    else:
+        return False
+    row["spp_map"] = count
+    return True
+
+
 def render_adaptive(
     scene,
     scorer: Scorer,
@@ -460,12 +472,7 @@ def render_adaptive(
             predicted = result.score
             noise = _error(result.map, scorer.higher_is_better) * count**alpha
         row = clock.row(mean, count, predicted, scored)
-        if total_spp is not None and count.mean() >= total_spp:
-            row["stop"] = "spp"
-        elif time_budget_s is not None and row["seconds"] >= time_budget_s:
-            row["stop"] = "time"
-        if "stop" in row:
-            row["spp_map"] = count
+        if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
         t0 = time.perf_counter()
         extra = allocate_samples(noise, count, budget, alpha, uniform_share, rng)
@@ -515,12 +522,7 @@ def _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_pe
             result = clock.scored(scorer, mean)
             qmap, predicted = result.map, result.score
         row = clock.row(mean, count, predicted, scored)
-        if total_spp is not None and count.mean() >= total_spp:
-            row["stop"] = "spp"
-        elif time_budget_s is not None and row["seconds"] >= time_budget_s:
-            row["stop"] = "time"
-        if "stop" in row:
-            row["spp_map"] = count
+        if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
         order = np.argsort(-_expected_gain(qmap, count, tiles, k, scorer.higher_is_better), kind="stable")
         t0 = time.perf_counter()
