@@ -268,7 +268,7 @@ def render(args, out: Path) -> str:
 
     variant = ensure_variant(args.backend)
     scorer, label = render_scorer(args)
-    rows, figures = [], []
+    rows = []
     scenes = args.scenes.split(",")
     seeds = list(range(1, args.render_repeats + 1))
     fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
