@@ -147,6 +147,13 @@ class PixelRenderer:
         return sums.reshape(self.height, self.width, 3)
 
 
+def _timed_score(scorer, image: np.ndarray):
+    """``(result, seconds)`` of scoring ``image`` as linear HDR."""
+    t0 = time.perf_counter()
+    result = scorer(image, hdr=True)
+    return result, time.perf_counter() - t0
+
+
 class _Clock:
     """Render and scoring time of a loop, the scoring cadence, and the row builder of its log."""
 
@@ -163,9 +170,7 @@ class _Clock:
         return self.max_overhead is None or self.score + self.score_cost <= self.max_overhead * self.render
 
     def scored(self, scorer, image: np.ndarray):
-        t0 = time.perf_counter()
-        result = scorer(image, hdr=True)
-        self.score_cost = time.perf_counter() - t0
+        result, self.score_cost = _timed_score(scorer, image)
         self.score += self.score_cost
         return result
 
@@ -250,9 +255,7 @@ def render_until(
         t0 = time.perf_counter()
         img = _render(loaded, spp_per_step, seed=2**31 - 1)
         if scorer is not None:
-            t1 = time.perf_counter()
-            scorer(img, hdr=True)
-            cost = time.perf_counter() - t1
+            cost = _timed_score(scorer, img)[1]
         setup = time.perf_counter() - t0
     clock = _Clock(reference, setup, cost, max_overhead)
     mean: np.ndarray | None = None
@@ -452,9 +455,7 @@ def render_adaptive(
         t0 = time.perf_counter()
         sums = renderer(np.full((height, width), initial_spp), seed=2**31 - 1)
         renderer(np.full((height, width), spp_per_step), seed=2**31 - 2)
-        t1 = time.perf_counter()
-        scorer((sums / initial_spp).astype(np.float32), hdr=True)
-        cost = time.perf_counter() - t1
+        cost = _timed_score(scorer, (sums / initial_spp).astype(np.float32))[1]
         setup = time.perf_counter() - t0
     clock = _Clock(reference, setup, cost, max_overhead)
 
@@ -504,9 +505,7 @@ def _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_pe
         img = _render(loaded, initial_spp, seed=2**31 - 1, sensor=full)
         for c in crops:
             _render(loaded, k, seed=2**31 - 1, sensor=c)
-        t1 = time.perf_counter()
-        scorer(img, hdr=True)
-        cost = time.perf_counter() - t1
+        cost = _timed_score(scorer, img)[1]
         setup = time.perf_counter() - t0
     clock = _Clock(reference, setup, cost, max_overhead)
 
