@@ -38,6 +38,7 @@ from collections.abc import Mapping
 import numpy as np
 import torch
 
+from data_gen.render import MAX_WAVEFRONT
 from nriqa.scorer import Scorer
 from nriqa.ssim import ssim_map
 from nriqa.tonemap import tonemap
@@ -70,9 +71,15 @@ def true_ssim(image: np.ndarray, reference: np.ndarray) -> float:
 
 
 def _load(scene):
+    """A loaded scene; a dict's integrator loses ``samples_per_pass``: the loops size their own steps."""
     import mitsuba as mi
 
-    return mi.load_dict(dict(scene)) if isinstance(scene, Mapping) else scene
+    if not isinstance(scene, Mapping):
+        return scene
+    scene = dict(scene)
+    if isinstance(scene.get("integrator"), Mapping):
+        scene["integrator"] = {k: v for k, v in scene["integrator"].items() if k != "samples_per_pass"}
+    return mi.load_dict(scene)
 
 
 def _render(scene, spp: int, seed: int, sensor: int = 0) -> np.ndarray:
@@ -204,6 +211,31 @@ def _check_overhead(max_overhead: float | None) -> None:
         raise ValueError(f"max_overhead must be > 0 or None (score every step), got {max_overhead}")
 
 
+def _check_growth(growth: float) -> None:
+    if not growth >= 0:
+        raise ValueError(f"growth must be >= 0 (0: steps of spp_per_step throughout), got {growth}")
+
+
+def _next_step(done: float, spp_per_step: float, growth: float, clock: _Clock, time_budget_s: float | None,
+               left_spp: float | None, pixels: int = 1) -> float:
+    """Mean samples per pixel of a loop's next step.
+
+    ``spp_per_step``, or ``growth`` times the samples per pixel done so far where that is more:
+    every step has a fixed cost (tracing the kernel, moving the result to numpy, placing the
+    samples; ~4 ms at 128x128, against ~20 ms for 4 spp of a simple scene), so steps grow with
+    the image and their number with the log of the budget. Never more than ``left_spp``, nor
+    ``MAX_WAVEFRONT`` samples over the ``pixels`` (one wavefront's memory), nor, with a time
+    budget, than the render rate so far says fits in the time left (so a large step does not
+    overshoot the budget); at least one sample per pixel.
+    """
+    step = min(max(spp_per_step, growth * done), max(spp_per_step, MAX_WAVEFRONT / pixels))
+    if left_spp is not None:
+        step = min(step, left_spp)
+    if time_budget_s is not None and done > 0 and clock.render > 0:
+        step = min(step, (time_budget_s - clock.render - clock.score) * done / clock.render)
+    return max(step, 1.0)
+
+
 def render_until(
     scene,
     scorer: Scorer | None,
@@ -214,13 +246,14 @@ def render_until(
     *,
     max_spp: int | None = None,
     max_overhead: float | None = 0.05,
+    growth: float = 0.25,
     seed: int = 0,
     warmup: bool = True,
 ) -> tuple[np.ndarray, list[dict]]:
     """Progressive rendering until the predicted quality reaches ``target_score`` (early stopping).
 
-    Each step renders ``spp_per_step`` samples per pixel with a new seed and folds them into the
-    running mean; then, when scoring is due (see ``max_overhead``), the scorer rates the mean (as
+    Each step renders ``spp_per_step`` samples per pixel, or a multiple of it up to ``growth``
+    times those done so far, with a new seed and folds them into the running mean; then, when scoring is due (see ``max_overhead``), the scorer rates the mean (as
     linear HDR). The loop stops after the first scoring whose predicted pooled score reaches the
     target (``>=`` for SSIM, ``<=`` for the patch model's MAE), when the time budget (render +
     scoring seconds) is spent, or at ``max_spp``.
@@ -231,12 +264,14 @@ def render_until(
             (the baseline: it runs until the time budget or ``max_spp``).
         target_score: predicted pooled score to stop at (``None``: never stop early).
         time_budget_s: wall-clock budget in seconds for rendering plus scoring.
-        spp_per_step: samples per pixel per step.
+        spp_per_step: samples per pixel of the first step, and the least of any but the last.
         reference: converged ``(H, W, 3)`` linear image; adds the true mean SSIM to every row.
-        max_spp: stop at this many samples per pixel.
+        max_spp: stop before a step would exceed this many samples per pixel (a large step is cut).
         max_overhead: score only while scoring time stays within this share of render time
             (the cost of a scoring is the last one's); ``None`` scores after every step. The
             stop can come up to that many steps late: the price of a bounded overhead.
+        growth: steps grow to this share of the samples per pixel done (0: ``spp_per_step``
+            throughout); the last step is cut to what the time budget has left.
         seed: seed of the first step; step ``k`` uses ``seed + k``.
         warmup: render once, untimed and discarded, to JIT-compile the kernel (LLVM variants),
             and score that image once to learn the scorer's cost.
@@ -249,11 +284,15 @@ def render_until(
         row, ``stop``: ``"target"``, ``"time"`` or ``"max_spp"``.
     """
     _check_overhead(max_overhead)
+    _check_growth(growth)
     loaded = _load(scene)
+    pixels = int(np.prod(loaded.sensors()[0].film().crop_size()))
     setup = cost = 0.0
     if warmup:
         t0 = time.perf_counter()
         img = _render(loaded, spp_per_step, seed=2**31 - 1)
+        if growth > 0:  # grown steps: sample counts that are no power of two compile a kernel of their own
+            _render(loaded, 3 * spp_per_step, seed=2**31 - 2)
         if scorer is not None:
             cost = _timed_score(scorer, img)[1]
         setup = time.perf_counter() - t0
@@ -263,12 +302,15 @@ def render_until(
     step = 0
     predicted = None
     while True:
+        # Whole multiples of spp_per_step (a loaded scene's samples_per_pass, if set, must divide it).
+        k = spp_per_step * max(1, int(_next_step(spp, spp_per_step, growth, clock, time_budget_s,
+                                                 None if max_spp is None else max_spp - spp, pixels) // spp_per_step))
         t0 = time.perf_counter()
-        img = _render(loaded, spp_per_step, seed=seed + step)
+        img = _render(loaded, k, seed=seed + step)
         clock.render += time.perf_counter() - t0
         step += 1
-        mean = img if mean is None else mean + (img - mean) * (spp_per_step / (spp + spp_per_step))
-        spp += spp_per_step
+        mean = img if mean is None else mean + (img - mean) * (k / (spp + k))
+        spp += k
         last_step = max_spp is not None and spp + spp_per_step > max_spp
         scored = scorer is not None and (clock.score_due() or last_step)
         if scored:
@@ -347,7 +389,9 @@ def allocate_samples(
     ``w = a ** (1 / (1 + alpha))`` (Lagrange). Each step moves towards that: the adaptive part of
     the budget goes to the pixels below their share of the new total, in proportion to their
     shortfall; ``uniform_share`` of it is spread evenly (the map is a prediction: every pixel keeps
-    being sampled). Fractions are rounded at random with ``rng`` (deterministic for a seed).
+    being sampled). Fractions are rounded by systematic sampling with ``rng`` (a pixel gets its
+    fraction's extra sample with that probability, and the total is exactly ``budget``;
+    deterministic for a seed).
     """
     if not 0.0 <= uniform_share <= 1.0:
         raise ValueError(f"uniform_share must be in [0, 1], got {uniform_share}")
@@ -360,8 +404,14 @@ def allocate_samples(
         extra += adaptive * (shortfall / shortfall.sum() if shortfall.sum() > 0 else weight / weight.sum())
     else:
         extra += adaptive / pixels
-    whole = np.floor(extra)
-    return (whole + (rng.random(count.shape) < extra - whole)).astype(np.int64)
+    whole = np.floor(extra).astype(np.int64)
+    # Systematic rounding: one random offset, cumulative fractions; each fraction is < 1, so a pixel
+    # gains at most one sample, and the extras add up to the fractions' sum.
+    ticks = np.floor(np.cumsum((extra - whole).ravel()) + rng.random()).astype(np.int64)
+    out = whole.ravel() + np.diff(ticks, prepend=0)
+    short = budget - int(out.sum())  # 0, or +-1 from floating point in the sums
+    out[np.argsort(whole.ravel() - extra.ravel(), kind="stable")[: abs(short)]] += np.sign(short)
+    return np.clip(out, 0, None).reshape(count.shape)
 
 
 def _budget_spent(row: dict, count: np.ndarray, total_spp: float | None, time_budget_s: float | None) -> bool:
@@ -388,6 +438,7 @@ def render_adaptive(
     uniform_share: float = 0.5,
     fraction: float = 0.25,
     max_overhead: float | None = 0.05,
+    growth: float = 0.25,
     reference: np.ndarray | None = None,
     seed: int = 0,
     warmup: bool = True,
@@ -395,7 +446,8 @@ def render_adaptive(
     """Adaptive sampling: spend samples where the predicted map expects them to remove the most error.
 
     A uniform pass of ``initial_spp`` samples, then per step ``spp_per_step`` samples per pixel on
-    average (a uniform step's worth), placed by the latest predicted map:
+    average (a uniform step's worth; per pixel, ``growth`` times those done where that is more, as
+    in :func:`render_until`), placed by the latest predicted map:
 
     * per pixel (``tile=None``, JIT variants): the scorer's error (``1 - SSIM``, or the patch
       model's MAE) at the pixel's count ``n`` gives its noise ``a = error * n**alpha`` (``alpha``
@@ -426,6 +478,8 @@ def render_adaptive(
         uniform_share: per pixel, the share of each step's samples spread evenly, in [0, 1].
         fraction: per tile, the share of tiles refined per step, in (0, 1].
         max_overhead: as for :func:`render_until`; the first map is always predicted.
+        growth: per pixel, as for :func:`render_until` (steps are not cut below one sample per
+            pixel on average, nor grown, per tile).
         reference: converged ``(H, W, 3)`` image; adds the true mean SSIM to every row.
         seed: base seed; every render call gets a distinct one.
         warmup: run every kernel once, untimed (LLVM variants), and score once to learn the cost.
@@ -437,6 +491,7 @@ def render_adaptive(
     if total_spp is None and time_budget_s is None:
         raise ValueError("render_adaptive needs a budget: total_spp, time_budget_s or both")
     _check_overhead(max_overhead)
+    _check_growth(growth)
     if tile is None and not is_jit_variant():
         import mitsuba as mi
 
@@ -449,7 +504,6 @@ def render_adaptive(
     height, width = renderer.height, renderer.width
     alpha = 1.0 if scorer.higher_is_better else 0.5
     rng = np.random.default_rng(seed)
-    budget = spp_per_step * height * width
     setup = cost = 0.0
     if warmup:
         t0 = time.perf_counter()
@@ -475,8 +529,10 @@ def render_adaptive(
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
+        step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s,
+                          None if total_spp is None else total_spp - count.mean(), count.size)
         t0 = time.perf_counter()
-        extra = allocate_samples(noise, count, budget, alpha, uniform_share, rng)
+        extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng)
         sums += renderer(extra, seed=seed + calls)
         calls += 1
         count += extra
