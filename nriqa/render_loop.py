@@ -439,6 +439,8 @@ def render_adaptive(
     fraction: float = 0.25,
     max_overhead: float | None = 0.05,
     growth: float = 0.25,
+    map_spp: float | None = 64,
+    probe_spp: int = 32,
     reference: np.ndarray | None = None,
     seed: int = 0,
     warmup: bool = True,
@@ -520,12 +522,30 @@ def render_adaptive(
     clock.render += time.perf_counter() - t0
     calls = 1
     noise = predicted = None
+    weight = 0.0
     while True:
         scored = noise is None or clock.score_due()
         if scored:
-            result = clock.scored(scorer, mean)
-            predicted = result.score
-            noise = _error(result.map, scorer.higher_is_better) * count**alpha
+            if map_spp is None or count.mean() <= map_spp:  # the image itself is in the scorer's range
+                result = clock.scored(scorer, mean)
+                predicted, n = result.score, count.copy()
+            else:  # a fresh uniform probe in range, folded into the image like any other samples
+                t0 = time.perf_counter()
+                probe = renderer(np.full((height, width), probe_spp), seed=seed + calls)
+                calls += 1
+                sums += probe
+                count += probe_spp
+                mean = (sums / count[..., None]).astype(np.float32)
+                clock.render += time.perf_counter() - t0
+                result = clock.scored(scorer, (probe / probe_spp).astype(np.float32))
+                n = probe_spp
+            estimate = _error(result.map, scorer.higher_is_better) * n**alpha
+            share = float(np.mean(n)) / (weight + float(np.mean(n)))  # the mean over maps, weighted by their samples
+            weight += float(np.mean(n))
+            noise = estimate if noise is None else noise + (estimate - noise) * share
+        if map_spp is not None and count.mean() > map_spp:
+            error = noise / count**alpha  # beyond the scorer's range: the error model's prediction at the counts
+            predicted = float(1.0 - np.clip(error, 0.0, 1.0).mean()) if scorer.higher_is_better else float(error.mean())
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
