@@ -1,12 +1,14 @@
 """Render loops in Mitsuba 3 driven by the Scorer: early stopping and adaptive sampling.
 
-* :func:`render_until` -- progressive rendering: passes of ``spp_per_step`` samples with fresh
-  seeds, averaged, until the predicted pooled quality reaches a target or the time runs out.
+* :func:`render_until` -- progressive rendering: passes of ``spp_per_step`` samples (growing with
+  the image, ``growth``) with fresh seeds, averaged, until the predicted pooled quality reaches a
+  target or the time runs out.
 * :func:`render_adaptive` -- after a uniform first pass, each step spends as many samples as a
   uniform step would, per pixel where the predicted map expects them to remove the most error
   (one wavefront through the scene's integrator: a custom sampling loop in Mitsuba's Python API,
   JIT variants), or per tile through film crops (``tile=N``; the only way in ``scalar_rgb``).
-  Every pixel keeps its sample count and the mean of its samples.
+  Every pixel keeps its sample count and the mean of its samples. Past the scorer's training
+  range (``map_spp``), maps come from fresh low-spp uniform probes instead of the image.
 
 Scoring costs time, so neither loop scores after every step by default: with ``max_overhead``
 (default 5 %) the scorer runs only while its total time stays within that share of the render
@@ -463,7 +465,15 @@ def render_adaptive(
 
     Every pixel keeps its sample count and the mean of its samples. The map is re-predicted when
     scoring is due (``max_overhead``); in between, the counts added since keep the error model
-    current (``error = a / n**alpha``).
+    current (``error = a / n**alpha``). Per pixel, ``a`` is the mean of the estimates of every map
+    so far, weighted by their samples. A scorer is only right on images like those it learnt
+    from: the shipped models never saw more than 64 spp (128 in the door scene), and beyond that
+    their maps mark edges rather than noise (measured on cornell at 128 spp: pixel PCC 0.09 against
+    the true SSIM map, 0.75 at 16 spp). So once the image passes ``map_spp`` samples per pixel, a
+    map comes from a fresh uniform probe of ``probe_spp`` samples: when scoring is due, the next
+    step is the probe instead (if the time budget leaves room for it; never two in a row), scored
+    alone and folded into the image like any other samples; ``predicted`` is then the error
+    model's, the mean of ``1 - a / n**alpha`` (or ``a / n**alpha``) at the current counts.
 
     Stops when the mean samples per pixel reach ``total_spp`` or the render + scoring time reaches
     ``time_budget_s`` (give at least one).
@@ -482,6 +492,9 @@ def render_adaptive(
         max_overhead: as for :func:`render_until`; the first map is always predicted.
         growth: per pixel, as for :func:`render_until` (steps are not cut below one sample per
             pixel on average, nor grown, per tile).
+        map_spp: per pixel, the most samples per pixel at which the scorer rates the image itself;
+            beyond, it rates probes. ``None``: always the image.
+        probe_spp: per pixel, samples per pixel of a probe (within the scorer's range).
         reference: converged ``(H, W, 3)`` image; adds the true mean SSIM to every row.
         seed: base seed; every render call gets a distinct one.
         warmup: run every kernel once, untimed (LLVM variants), and score once to learn the cost.
@@ -523,27 +536,21 @@ def render_adaptive(
     calls = 1
     noise = predicted = None
     weight = 0.0
+    probe = None
     while True:
-        scored = noise is None or clock.score_due()
+        scored = noise is None or probe is not None or (clock.score_due() and in_range(map_spp, count))
         if scored:
-            if map_spp is None or count.mean() <= map_spp:  # the image itself is in the scorer's range
+            if probe is None:  # the image itself is in the scorer's range
                 result = clock.scored(scorer, mean)
                 predicted, n = result.score, count.copy()
-            else:  # a fresh uniform probe in range, folded into the image like any other samples
-                t0 = time.perf_counter()
-                probe = renderer(np.full((height, width), probe_spp), seed=seed + calls)
-                calls += 1
-                sums += probe
-                count += probe_spp
-                mean = (sums / count[..., None]).astype(np.float32)
-                clock.render += time.perf_counter() - t0
+            else:  # the probe just rendered
                 result = clock.scored(scorer, (probe / probe_spp).astype(np.float32))
-                n = probe_spp
+                n, probe = probe_spp, None
             estimate = _error(result.map, scorer.higher_is_better) * n**alpha
             share = float(np.mean(n)) / (weight + float(np.mean(n)))  # the mean over maps, weighted by their samples
             weight += float(np.mean(n))
             noise = estimate if noise is None else noise + (estimate - noise) * share
-        if map_spp is not None and count.mean() > map_spp:
+        if not in_range(map_spp, count):
             error = noise / count**alpha  # beyond the scorer's range: the error model's prediction at the counts
             predicted = float(1.0 - np.clip(error, 0.0, 1.0).mean()) if scorer.higher_is_better else float(error.mean())
         row = clock.row(mean, count, predicted, scored)
@@ -552,12 +559,24 @@ def render_adaptive(
         step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s,
                           None if total_spp is None else total_spp - count.mean(), count.size)
         t0 = time.perf_counter()
-        extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng)
-        sums += renderer(extra, seed=seed + calls)
+        if not in_range(map_spp, count) and clock.score_due() and not scored and step >= probe_spp:
+            # A map is due past the scorer's range: this step is a fresh uniform probe (never two in a
+            # row), scored alone next, and folded into the image like any other samples.
+            extra = np.full((height, width), probe_spp)
+            probe = renderer(extra, seed=seed + calls)
+            sums += probe
+        else:
+            extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng)
+            sums += renderer(extra, seed=seed + calls)
         calls += 1
         count += extra
         mean = (sums / count[..., None]).astype(np.float32)
         clock.render += time.perf_counter() - t0
+
+
+def in_range(map_spp: float | None, count: np.ndarray) -> bool:
+    """Whether an image of ``count`` samples per pixel is within ``map_spp`` (``None``: any is)."""
+    return map_spp is None or float(count.mean()) <= map_spp
 
 
 def _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction, max_overhead,

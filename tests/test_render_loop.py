@@ -267,3 +267,38 @@ def test_render_adaptive_per_pixel(llvm_scene):
                                   max_overhead=None)
     np.testing.assert_array_equal(again, first)
     np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
+
+
+class RecordingScorer(OracleScorer):
+    """The oracle, keeping every image it is asked to rate."""
+
+    def __init__(self, reference):
+        super().__init__(reference)
+        self.images = []
+
+    def __call__(self, image, *, hdr=None):
+        self.images.append(np.array(image))
+        return super().__call__(image, hdr=hdr)
+
+
+def test_render_adaptive_probes_beyond_the_scorers_range(llvm_scene):
+    scene, reference = llvm_scene
+    scorer = RecordingScorer(reference)
+    image, log = render_adaptive(scene, scorer, total_spp=40, initial_spp=4, spp_per_step=4, map_spp=8, probe_spp=4,
+                                 max_overhead=None, reference=reference, seed=2, warmup=False)
+    counts = log[-1]["spp_map"]
+    assert log[-1]["stop"] == "spp" and np.isfinite(image).all()
+    beyond = [r for r in log if r["spp"] > 8]
+    assert beyond and all(0.0 <= r["predicted"] <= 1.0 for r in beyond)
+    # Beyond map_spp every other step is a uniform 4-spp probe (scoring is due every step here),
+    # and the scorer rates the probe, not the image: it is noisier than the image.
+    probes = sum(r["scored"] for r in beyond)
+    assert probes >= 2
+    assert not any(a["scored"] and b["scored"] for a, b in zip(beyond, beyond[1:]))
+    assert len(scorer.images) == sum(r["scored"] for r in log)
+    probe_true = true_ssim(scorer.images[-1], reference)
+    assert probe_true < log[-1]["true"] - 0.05
+    assert abs(true_ssim(scorer.images[1], reference) - log[1]["true"]) < 1e-6  # at 8 spp: the image itself
+    # Probes are uniform and count like any samples; the model's prediction tracks the true score.
+    assert counts.min() >= 4 + 4 * probes and log[-1]["spp"] == pytest.approx(counts.mean())
+    assert log[-1]["predicted"] == pytest.approx(log[-1]["true"], abs=0.1)
