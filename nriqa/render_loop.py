@@ -105,8 +105,9 @@ class PixelRenderer:
     One wavefront holds every sample asked for: pixel indices repeated by their counts, a point
     uniform in the pixel (box filter), a camera ray through it, the scene's integrator's
     ``sample`` (path or volpath; not the particle tracer, which does not trace from the camera),
-    weighted by the sensor's importance. Sums per pixel are taken in numpy (``np.bincount``, a fixed
-    order: the same seed and counts give the same sums, which float atomics would not promise).
+    weighted by the sensor's importance. Sums per pixel are taken in numpy (segment sums over the
+    samples, which are sorted by pixel: a fixed order, so the same seed and counts give the same
+    sums, which float atomics would not promise).
     Needs a JIT variant (``llvm_ad_rgb``); the seed is passed as an opaque value so that a new seed
     or a new wavefront size does not recompile the kernel.
     """
@@ -136,10 +137,11 @@ class PixelRenderer:
         if counts.shape != (self.height, self.width):
             raise ValueError(f"counts must be {(self.height, self.width)}, got {counts.shape}")
         pixels = self.height * self.width
-        index = np.repeat(np.arange(pixels, dtype=np.uint32), counts.reshape(-1).astype(np.int64))
-        sums = np.zeros((pixels, 3))
+        flat = counts.reshape(-1).astype(np.int64)
+        index = np.repeat(np.arange(pixels, dtype=np.uint32), flat)
+        sums = np.zeros((3, pixels))
         if index.size == 0:
-            return sums.reshape(self.height, self.width, 3)
+            return sums.T.reshape(self.height, self.width, 3)
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(dr.opaque(mi.UInt32, seed & 0xFFFFFFFF), index.size)
         idx = mi.UInt32(index)
@@ -149,11 +151,13 @@ class PixelRenderer:
         ray, weight = self.sensor.sample_ray(time_, sampler.next_1d(), position, sampler.next_2d())
         spectrum, _, _ = self.integrator.sample(self.scene, sampler, ray, self.sensor.get_medium())
         rgb = spectrum * weight
+        rgb = dr.select(dr.isfinite(rgb), rgb, 0.0)  # a non-finite sample counts as 0, in the kernel
         dr.eval(rgb)  # one kernel for all three channels (reading .x, .y, .z lazily would trace three times)
-        values = np.nan_to_num(np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)], axis=-1), nan=0.0, posinf=0.0, neginf=0.0)
-        for c in range(3):
-            sums[:, c] = np.bincount(index, weights=values[:, c], minlength=pixels)
-        return sums.reshape(self.height, self.width, 3)
+        values = np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)])
+        # The samples are sorted by pixel: sums are segment sums, added in order (deterministic).
+        nonzero = np.flatnonzero(flat)
+        sums[:, nonzero] = np.add.reduceat(values, (np.cumsum(flat) - flat)[nonzero], axis=1)
+        return sums.T.reshape(self.height, self.width, 3)
 
 
 def _timed_score(scorer, image: np.ndarray):
@@ -515,6 +519,8 @@ def render_adaptive(
     if tile is not None:
         return _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction,
                                max_overhead, reference, seed, warmup)
+    if not probe_spp >= 1:
+        raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
     renderer = PixelRenderer(_load(scene))
     height, width = renderer.height, renderer.width
     alpha = 1.0 if scorer.higher_is_better else 0.5
@@ -538,7 +544,7 @@ def render_adaptive(
     weight = 0.0
     probe = None
     while True:
-        scored = noise is None or probe is not None or (clock.score_due() and in_range(map_spp, count))
+        scored = noise is None or probe is not None or (clock.score_due() and _in_range(map_spp, count))
         if scored:
             if probe is None:  # the image itself is in the scorer's range
                 result = clock.scored(scorer, mean)
@@ -550,7 +556,7 @@ def render_adaptive(
             share = float(np.mean(n)) / (weight + float(np.mean(n)))  # the mean over maps, weighted by their samples
             weight += float(np.mean(n))
             noise = estimate if noise is None else noise + (estimate - noise) * share
-        if not in_range(map_spp, count):
+        if not _in_range(map_spp, count):
             error = noise / count**alpha  # beyond the scorer's range: the error model's prediction at the counts
             predicted = float(1.0 - np.clip(error, 0.0, 1.0).mean()) if scorer.higher_is_better else float(error.mean())
         row = clock.row(mean, count, predicted, scored)
@@ -559,7 +565,7 @@ def render_adaptive(
         step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s,
                           None if total_spp is None else total_spp - count.mean(), count.size)
         t0 = time.perf_counter()
-        if not in_range(map_spp, count) and clock.score_due() and not scored and step >= probe_spp:
+        if not _in_range(map_spp, count) and clock.score_due() and not scored and step >= probe_spp:
             # A map is due past the scorer's range: this step is a fresh uniform probe (never two in a
             # row), scored alone next, and folded into the image like any other samples.
             extra = np.full((height, width), probe_spp)
@@ -574,7 +580,7 @@ def render_adaptive(
         clock.render += time.perf_counter() - t0
 
 
-def in_range(map_spp: float | None, count: np.ndarray) -> bool:
+def _in_range(map_spp: float | None, count: np.ndarray) -> bool:
     """Whether an image of ``count`` samples per pixel is within ``map_spp`` (``None``: any is)."""
     return map_spp is None or float(count.mean()) <= map_spp
 
