@@ -476,8 +476,11 @@ def render_adaptive(
     the true SSIM map, 0.75 at 16 spp). So once the image passes ``map_spp`` samples per pixel, a
     map comes from a fresh uniform probe of ``probe_spp`` samples: when scoring is due, the next
     step is the probe instead (if the time budget leaves room for it; never two in a row), scored
-    alone and folded into the image like any other samples; ``predicted`` is then the error
-    model's, the mean of ``1 - a / n**alpha`` (or ``a / n**alpha``) at the current counts.
+    alone and folded into the image like any other samples. ``predicted`` is then the error
+    model's at the current counts: for SSIM, whose error ``v / (s + v)`` saturates at 1 while the
+    noise variance ``v`` is large, the mean of ``1 - b / (b + n)`` with ``b = e n / (1 - e)``
+    averaged over maps like ``a`` (the ``a / n`` form would call a dim, noisy render nearly
+    converged); for the MAE, the mean of ``a / sqrt(n)``.
 
     Stops when the mean samples per pixel reach ``total_spp`` or the render + scoring time reaches
     ``time_budget_s`` (give at least one).
@@ -540,7 +543,7 @@ def render_adaptive(
     mean = (sums / count[..., None]).astype(np.float32)
     clock.render += time.perf_counter() - t0
     calls = 1
-    noise = predicted = None
+    noise = odds = predicted = None
     weight = 0.0
     probe = None
     while True:
@@ -552,13 +555,15 @@ def render_adaptive(
             else:  # the probe just rendered
                 result = clock.scored(scorer, (probe / probe_spp).astype(np.float32))
                 n, probe = probe_spp, None
-            estimate = _error(result.map, scorer.higher_is_better) * n**alpha
+            error = _error(result.map, scorer.higher_is_better)
             share = float(np.mean(n)) / (weight + float(np.mean(n)))  # the mean over maps, weighted by their samples
             weight += float(np.mean(n))
-            noise = estimate if noise is None else noise + (estimate - noise) * share
-        if not _in_range(map_spp, count):
-            error = noise / count**alpha  # beyond the scorer's range: the error model's prediction at the counts
-            predicted = float(1.0 - np.clip(error, 0.0, 1.0).mean()) if scorer.higher_is_better else float(error.mean())
+            noise = _running_mean(noise, error * n**alpha, share)
+            if scorer.higher_is_better:  # 1 - SSIM = v / (s + v) with the noise variance v ~ 1/n: odds = e n / (1 - e)
+                error = np.clip(error, 0.0, 0.999)
+                odds = _running_mean(odds, error * n / (1.0 - error), share)
+        if not _in_range(map_spp, count):  # beyond the scorer's range: the error model's prediction at the counts
+            predicted = float(1.0 - (odds / (odds + count)).mean()) if scorer.higher_is_better else float((noise / count**alpha).mean())
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
@@ -578,6 +583,11 @@ def render_adaptive(
         count += extra
         mean = (sums / count[..., None]).astype(np.float32)
         clock.render += time.perf_counter() - t0
+
+
+def _running_mean(mean: np.ndarray | None, value: np.ndarray, share: float) -> np.ndarray:
+    """``value`` if there is no mean yet, else the mean moved by ``share`` of the way to ``value``."""
+    return value if mean is None else mean + (value - mean) * share
 
 
 def _in_range(map_spp: float | None, count: np.ndarray) -> bool:
