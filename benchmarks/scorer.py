@@ -323,8 +323,9 @@ def render(args, out: Path) -> str:
     fig.savefig(out / "render_loops.png", dpi=100)
     plt.close(fig)
     mode = "per pixel" if is_jit_variant() else "per 16px tile (scalar variant)"
-    note = (f"Mitsuba variant {variant}; scorer: {label}; {args.resolution}x{args.resolution}; {args.spp_per_step} spp per step "
-            f"(adaptive: the same samples per step on average, {mode}, uniform share {args.uniform_share}); time budget "
+    note = (f"Mitsuba variant {variant}; scorer: {label}; {args.resolution}x{args.resolution}; first step {args.spp_per_step} spp, steps "
+            f"growing to 25 % of the samples done (adaptive: the same samples per step on average, {mode}, uniform share "
+            f"{args.uniform_share}, 32-spp probes past 64 spp); time budget "
             f"{args.budget} s; scoring only while within {args.max_overhead} of render time; early-stop target {args.target}; "
             f"reference {args.reference_spp} spp; {len(seeds)} seeds per method, mean (± std). 'error ratio' is "
             "(1 - SSIM) over uniform's at the end of the budget, per seed, averaged (< 1: better than uniform at equal time). "
