@@ -242,6 +242,11 @@ def _next_step(done: float, spp_per_step: float, growth: float, clock: _Clock, t
     return max(step, 1.0)
 
 
+def _running_mean(mean: np.ndarray | None, value: np.ndarray, share: float) -> np.ndarray:
+    """``value`` if there is no mean yet, else the mean moved by ``share`` of the way to ``value``."""
+    return value if mean is None else mean + (value - mean) * share
+
+
 def render_until(
     scene,
     scorer: Scorer | None,
@@ -259,8 +264,8 @@ def render_until(
     """Progressive rendering until the predicted quality reaches ``target_score`` (early stopping).
 
     Each step renders ``spp_per_step`` samples per pixel, or a multiple of it up to ``growth``
-    times those done so far, with a new seed and folds them into the running mean; then, when scoring is due (see ``max_overhead``), the scorer rates the mean (as
-    linear HDR). The loop stops after the first scoring whose predicted pooled score reaches the
+    times those done so far, with a new seed and folds them into the running mean; then, when
+    scoring is due (see ``max_overhead``), the scorer rates the mean (as linear HDR). The loop stops after the first scoring whose predicted pooled score reaches the
     target (``>=`` for SSIM, ``<=`` for the patch model's MAE), when the time budget (render +
     scoring seconds) is spent, or at ``max_spp``.
 
@@ -315,7 +320,7 @@ def render_until(
         img = _render(loaded, k, seed=seed + step)
         clock.render += time.perf_counter() - t0
         step += 1
-        mean = img if mean is None else mean + (img - mean) * (k / (spp + k))
+        mean = _running_mean(mean, img, k / (spp + k))
         spp += k
         last_step = max_spp is not None and spp + spp_per_step > max_spp
         scored = scorer is not None and (clock.score_due() or last_step)
@@ -547,7 +552,8 @@ def render_adaptive(
     weight = 0.0
     probe = None
     while True:
-        scored = noise is None or probe is not None or (clock.score_due() and _in_range(map_spp, count))
+        beyond = map_spp is not None and float(count.mean()) > map_spp  # past the scorer's range
+        scored = noise is None or probe is not None or (clock.score_due() and not beyond)
         if scored:
             if probe is None:  # the image itself is in the scorer's range
                 result = clock.scored(scorer, mean)
@@ -556,13 +562,14 @@ def render_adaptive(
                 result = clock.scored(scorer, (probe / probe_spp).astype(np.float32))
                 n, probe = probe_spp, None
             error = _error(result.map, scorer.higher_is_better)
-            share = float(np.mean(n)) / (weight + float(np.mean(n)))  # the mean over maps, weighted by their samples
-            weight += float(np.mean(n))
+            samples = float(np.mean(n))
+            weight += samples
+            share = samples / weight  # the mean over maps, weighted by their samples
             noise = _running_mean(noise, error * n**alpha, share)
             if scorer.higher_is_better:  # 1 - SSIM = v / (s + v) with the noise variance v ~ 1/n: odds = e n / (1 - e)
                 error = np.clip(error, 0.0, 0.999)
                 odds = _running_mean(odds, error * n / (1.0 - error), share)
-        if not _in_range(map_spp, count):  # beyond the scorer's range: the error model's prediction at the counts
+        if beyond:  # the error model's prediction at the counts
             predicted = float(1.0 - (odds / (odds + count)).mean()) if scorer.higher_is_better else float((noise / count**alpha).mean())
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
@@ -570,7 +577,7 @@ def render_adaptive(
         step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s,
                           None if total_spp is None else total_spp - count.mean(), count.size)
         t0 = time.perf_counter()
-        if not _in_range(map_spp, count) and clock.score_due() and not scored and step >= probe_spp:
+        if beyond and clock.score_due() and not scored and step >= probe_spp:
             # A map is due past the scorer's range: this step is a fresh uniform probe (never two in a
             # row), scored alone next, and folded into the image like any other samples.
             extra = np.full((height, width), probe_spp)
@@ -583,16 +590,6 @@ def render_adaptive(
         count += extra
         mean = (sums / count[..., None]).astype(np.float32)
         clock.render += time.perf_counter() - t0
-
-
-def _running_mean(mean: np.ndarray | None, value: np.ndarray, share: float) -> np.ndarray:
-    """``value`` if there is no mean yet, else the mean moved by ``share`` of the way to ``value``."""
-    return value if mean is None else mean + (value - mean) * share
-
-
-def _in_range(map_spp: float | None, count: np.ndarray) -> bool:
-    """Whether an image of ``count`` samples per pixel is within ``map_spp`` (``None``: any is)."""
-    return map_spp is None or float(count.mean()) <= map_spp
 
 
 def _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction, max_overhead,
