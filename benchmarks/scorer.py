@@ -34,6 +34,7 @@ faster than two that compete with Mitsuba's threads and other processes.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import platform
 import statistics
@@ -323,9 +324,11 @@ def render(args, out: Path) -> str:
     fig.savefig(out / "render_loops.png", dpi=100)
     plt.close(fig)
     mode = "per pixel" if is_jit_variant() else "per 16px tile (scalar variant)"
+    # The loops' own defaults, which the runs above use: the note cannot drift from them.
+    default = {k: p.default for k, p in inspect.signature(render_adaptive).parameters.items()}
     note = (f"Mitsuba variant {variant}; scorer: {label}; {args.resolution}x{args.resolution}; first step {args.spp_per_step} spp, steps "
-            f"growing to 25 % of the samples done (adaptive: the same samples per step on average, {mode}, uniform share "
-            f"{args.uniform_share}, 32-spp probes past 64 spp); time budget "
+            f"growing to {default['growth']:.0%} of the samples done (adaptive: the same samples per step on average, {mode}, "
+            f"uniform share {args.uniform_share}, {default['probe_spp']}-spp probes past {default['map_spp']} spp); time budget "
             f"{args.budget} s; scoring only while within {args.max_overhead} of render time; early-stop target {args.target}; "
             f"reference {args.reference_spp} spp; {len(seeds)} seeds per method, mean (± std). 'error ratio' is "
             "(1 - SSIM) over uniform's at the end of the budget, per seed, averaged (< 1: better than uniform at equal time). "
