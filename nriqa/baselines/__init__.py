@@ -23,7 +23,6 @@ training scenes, for the MAE.
 from __future__ import annotations
 
 import abc
-
 import dataclasses
 import math
 
