@@ -26,7 +26,7 @@ from nriqa.atomic import write_text_atomic
 from nriqa.correlation import kendall_tau, pcc, srocc
 from nriqa.fold_eval import image_level, patch_correlations
 from nriqa.lit_module import load_net_from_checkpoint
-from nriqa.manifest import read_manifest, scenes_of
+from nriqa.manifest import read_datasets, scenes_of
 from nriqa.data.folds import FoldError, noisy_records
 from nriqa.tables import markdown_table, mean_std_row, write_csv
 from nriqa.training import exit_on_user_error, set_project_root, train
@@ -41,8 +41,7 @@ set_project_root()
 
 def fold_scenes(cfg: DictConfig) -> list[str]:
     """The folds to run: ``crossval.scenes`` if given (checked), else every scene with noisy images."""
-    records, _ = read_manifest(cfg.data.data_dir)
-    available = scenes_of(noisy_records(records))
+    available = scenes_of(noisy_records(read_datasets(cfg.data.data_dir)))
     wanted = list(cfg.crossval.scenes) if cfg.crossval.get("scenes") else available
     unknown = [s for s in wanted if s not in available]
     if unknown:

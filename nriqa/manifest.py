@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 from nriqa.atomic import write_text_atomic
@@ -85,6 +86,36 @@ def read_manifest(root: str | os.PathLike) -> tuple[list[Record], dict]:
             raise ManifestError(f"{path}: record {rec.id} has unknown role {rec.role!r}")
         records.append(rec)
     return records, body.get("meta", {})
+
+
+def read_datasets(roots: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Record]:
+    """The records of one dataset root or of several, each path prefixed with its root.
+
+    Records of several roots can then be loaded together (their paths are relative to the working
+    directory, not to a root). With more than one root, ids are prefixed with ``<root>:`` too, since
+    two datasets rendered by the same presets share ids.
+
+    Raises:
+        ManifestError: a root has no readable manifest, or no root is given.
+    """
+    roots = [roots] if isinstance(roots, (str, os.PathLike)) else list(roots)
+    if not roots:
+        raise ManifestError("no dataset root given; pass a directory holding manifest.json (or a list of them)")
+    out = []
+    for root in roots:
+        records, _ = read_manifest(root)
+        prefix = f"{root}:" if len(roots) > 1 else ""
+        for rec in records:
+            out.append(
+                dataclasses.replace(
+                    rec,
+                    id=prefix + rec.id,
+                    twin=None if rec.twin is None else prefix + rec.twin,
+                    path=str(Path(root) / rec.path),
+                    reference=str(Path(root) / rec.reference),
+                )
+            )
+    return out
 
 
 def scenes_of(records: list[Record]) -> list[str]:

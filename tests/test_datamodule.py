@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -12,6 +14,7 @@ from nriqa.data.patches import EpochSampler, cut, item_generator
 from nriqa.data.targets import compute_target
 from nriqa.manifest import ManifestError, read_manifest, write_manifest
 from nriqa.ssim import ssim_map
+from conftest import make_dataset
 
 
 @pytest.fixture(scope="module")
@@ -28,13 +31,32 @@ def make_dm(root, **kw) -> NRIQADataModule:
     return dm
 
 
-def test_fold_holds_the_scene_out(dm):
+def test_fold_holds_the_scene_out(synthetic_dataset, dm):
     assert {p.record.scene for p in dm.train_pairs} == {"alpha", "gamma"}
     assert {p.record.scene for p in dm.val_pairs} == {"beta"}
     assert all(p.record.role in ("test", "twin") for p in dm.train_pairs + dm.val_pairs)
     # each noisy image is paired with its own reference
     for p in dm.train_pairs:
-        assert p.record.reference == f"{p.record.scene}/reference.exr"
+        assert Path(p.record.reference) == synthetic_dataset / p.record.scene / "reference.exr"
+
+
+def test_several_roots_train_together(synthetic_dataset, tmp_path):
+    # a second dataset with other images (another size, a longer ladder, only two of the scenes)
+    other = make_dataset(tmp_path / "longer", size=64, scenes=("alpha", "beta"), spps=(64, 256))
+    one, both = make_dm(synthetic_dataset), make_dm([synthetic_dataset, other])
+    assert len(both.train_pairs) == len(one.train_pairs) + 4 and len(both.val_pairs) == len(one.val_pairs) + 4
+    ids = [p.record.id for p in both.train_pairs + both.val_pairs]
+    assert len(set(ids)) == len(ids)
+    longer = [p for p in both.train_pairs if p.record.spp == 256]
+    assert longer and all(p.noisy.shape == (3, 64, 64) and p.ref.shape == (3, 64, 64) for p in longer)
+    x, y = next(iter(both.train_dataloader()))
+    assert x.shape == (4, 3, 32, 32) and torch.isfinite(y).all()
+    # the held-out scene is checked against every root together
+    make_dm([synthetic_dataset, other], val_scene="gamma")
+    with pytest.raises(FoldError, match="alpha, beta, gamma"):
+        make_dm([synthetic_dataset, other], val_scene="delta")
+    with pytest.raises(ManifestError, match="no manifest"):
+        make_dm([synthetic_dataset, tmp_path / "missing"])
 
 
 def test_no_val_scene_trains_on_all(synthetic_dataset):

@@ -15,11 +15,12 @@ from torch import nn
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.lit_module import CheckpointError, NRIQAModule, load_net_from_checkpoint
 from nriqa.training import CONFIG_DIR, PROJECT_ROOT, train, user_error
+from conftest import make_dataset
 
 EXPERIMENTS = sorted(p.stem for p in (CONFIG_DIR / "experiment").glob("*.yaml"))
 
 
-def compose_cfg(tmp_path: Path, data_dir: Path, *overrides: str) -> DictConfig:
+def compose_cfg(tmp_path: Path, data_dir: Path | str, *overrides: str) -> DictConfig:
     """The real train config, writing into ``tmp_path``, on the smoke schedule, on CPU."""
     with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
         return compose(
@@ -82,6 +83,14 @@ def test_without_val_scene_keeps_the_last_checkpoint(synthetic_dataset, tmp_path
     assert cfg.optimized_metric == "train/loss" and "train/loss" in metrics and "val/loss" not in metrics
     assert Path(objects["best_ckpt"]).is_file()
     assert load_net_from_checkpoint(objects["best_ckpt"]).output == "map"
+
+
+def test_several_dataset_roots_from_the_command_line(synthetic_dataset, tmp_path):
+    other = make_dataset(tmp_path / "longer", size=64, scenes=("alpha",), spps=(256,))
+    cfg = compose_cfg(tmp_path, f"[{synthetic_dataset},{other}]", "experiment=fcnn_fast", "debug=fdr", "+model.net.width=8")
+    metrics, objects = train(cfg)
+    assert "train/loss" in metrics
+    assert any(p.record.spp == 256 for p in objects["datamodule"].train_pairs)
 
 
 def test_unknown_scene_is_a_one_line_error(synthetic_dataset, tmp_path):

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
@@ -12,7 +13,7 @@ from nriqa.data.folds import split_by_scene
 from nriqa.data.images import ImagePair, load_pairs
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
 from nriqa.data.targets import check_target
-from nriqa.manifest import read_manifest
+from nriqa.manifest import read_datasets
 
 # Offsets that give training and the two fixed evaluation sets independent random streams.
 _VAL_STREAM = 1_000_003
@@ -30,7 +31,8 @@ class NRIQADataModule(L.LightningDataModule):
     computed. Validation: ``val_patches`` fixed seeded patches of ``val_scene``, never jittered.
 
     Args:
-        data_dir: dataset root holding ``manifest.json``.
+        data_dir: dataset root holding ``manifest.json``, or a list of roots trained on together
+            (e.g. the default dataset and one rendered with a longer spp ladder).
         val_scene: scene family held out for validation; ``None`` trains on all, no validation.
         patch_size: 32 for the patch CNN, 64 for the FCNNs.
         target: ``"ssim_map"`` (experiment II) or ``"patch_mae"`` (experiment I).
@@ -44,7 +46,7 @@ class NRIQADataModule(L.LightningDataModule):
 
     def __init__(
         self,
-        data_dir: str | os.PathLike,
+        data_dir: str | os.PathLike | Sequence[str | os.PathLike],
         val_scene: str | None = None,
         patch_size: int = 64,
         target: str = "ssim_map",
@@ -63,7 +65,7 @@ class NRIQADataModule(L.LightningDataModule):
         if unknown:
             raise ValueError(f"unknown jitter switches {sorted(unknown)}; use hsv and geometric")
         self.save_hyperparameters(logger=False)
-        self.data_dir = str(data_dir)
+        self.data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         self.val_scene = val_scene
         self.patch_size = patch_size
         self.target = target
@@ -87,10 +89,9 @@ class NRIQADataModule(L.LightningDataModule):
         """
         if self.train_set is not None:
             return
-        records, _ = read_manifest(self.data_dir)
-        train, val = split_by_scene(records, self.val_scene)
-        self.train_pairs = load_pairs(self.data_dir, train)
-        self.val_pairs = load_pairs(self.data_dir, val)
+        train, val = split_by_scene(read_datasets(self.data_dir), self.val_scene)
+        self.train_pairs = load_pairs(Path(), train)
+        self.val_pairs = load_pairs(Path(), val)
         self.train_set = TrainPatches(
             self.train_pairs,
             self.patch_size,
