@@ -3,7 +3,7 @@
     python benchmarks/scorer.py --out reports/scorer [--size 512 --patch-size 128 --repeats 3]
                                 [--data data/default --val-scene cornell --checkpoint-dir DIR]
                                 [--scenes cornell,caustic,door --resolution 128 --budget 2 --render-repeats 3]
-                                [--skip throughput,memory,accuracy,render]
+                                [--range-spp 16,64,256] [--skip throughput,memory,accuracy,range,render]
 
 Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as PNGs beside it:
 
@@ -17,7 +17,11 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    ``--checkpoint-dir``): on the test images of ``--val-scene``, image-level SROCC of the pooled
    prediction against the true mean SSIM (MAE for the patch model) and pixel PCC of the map against
    the true SSIM map. Without weights it prints "no weights".
-4. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
+4. **range** -- on each render scene, at each ``--range-spp``, without a clock: the scorer's pooled
+   score and map against the truth on uniform images, and the error of adaptive sampling (predicted
+   and oracle map) over uniform's at equal mean spp (``render_adaptive`` with ``total_spp``). The
+   shipped models learnt from at most 64 spp; this shows how far past that their maps still help.
+5. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
    reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
    (no scorer), early stopping at a predicted target, adaptive sampling per pixel, the same driven
    by the true SSIM map (an oracle: the headroom a perfect predictor would have), and adaptive
@@ -249,6 +253,70 @@ class OracleScorer:
         return ScoreResult(m, float(m.mean()), "ssim", True)
 
 
+_SCENES: dict[tuple, tuple[dict, np.ndarray]] = {}
+
+
+def bench_scene(name: str, args) -> tuple[dict, np.ndarray]:
+    """A data_gen scene (variant 0, path tracing) as a dict at ``--resolution``, and its reference
+    at ``--reference-spp``; rendered once per run, shared by the sections."""
+    key = (name, args.resolution, args.reference_spp, args.spp_per_step)
+    if key not in _SCENES:
+        import mitsuba as mi
+
+        from data_gen.plan import ImageTask, Job
+        from data_gen.render import scene_dict
+        from data_gen.scenes import get_scene
+
+        spec = get_scene(name)
+        job = Job(name, 0, 1234, spec.reference_algorithm, (args.resolution, args.resolution), spec.max_depth, ())
+        scene = scene_dict(job, ImageTask("bench", "test", args.spp_per_step, 1, "b.exr", "r.exr"))
+        t0 = time.perf_counter()
+        reference = np.array(mi.render(mi.load_dict(scene), spp=args.reference_spp, seed=987654), dtype=np.float32)[..., :3]
+        print(f"  {name}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        _SCENES[key] = scene, reference
+    return _SCENES[key]
+
+
+def scorer_range(args) -> str:
+    """The scorer across sample counts, without timing: how well its map follows the true one, and
+    what adaptive sampling driven by it gains at equal samples (the loops' own code, no clock)."""
+    from nriqa.correlation import pcc
+    from nriqa.render_loop import ensure_variant, render_adaptive
+
+    ensure_variant(args.backend)
+    scorer, label = render_scorer(args)
+    rows = []
+    seeds = list(range(1, args.render_repeats + 1))
+    for name in args.scenes.split(","):
+        scene, reference = bench_scene(name, args)
+        oracle = OracleScorer(reference)
+        for spp in args.range_spp:
+            runs = {"uniform": [], "predicted": [], "oracle": []}
+            maps = []
+            for seed in seeds:
+                for method, (by, share) in {"uniform": (scorer, 1.0), "predicted": (scorer, args.uniform_share),
+                                            "oracle": (oracle, args.uniform_share)}.items():
+                    image, log = render_adaptive(scene, by, total_spp=spp, initial_spp=args.spp_per_step,
+                                                 spp_per_step=args.spp_per_step, uniform_share=share, max_overhead=None,
+                                                 reference=reference, seed=seed)
+                    runs[method].append(1.0 - log[-1]["true"])
+                    if method == "uniform":  # a uniform image at spp: the scorer's map against the true one
+                        maps.append((scorer(image, hdr=True), oracle(image)))
+            pred = np.mean([p.score for p, _ in maps])
+            true = np.mean([t.score for _, t in maps])
+            pixel = np.mean([float(pcc(torch.from_numpy(p.map).flatten(), torch.from_numpy(t.map).flatten())) for p, t in maps])
+            uniform = np.array(runs["uniform"])
+            ratio = {m: float(np.mean(np.array(v) / uniform)) for m, v in runs.items()}
+            rows.append([name, spp, f"{true:.4f}", f"{pred:.4f}", f"{pixel:.3f}", f"{ratio['predicted']:.3f}", f"{ratio['oracle']:.3f}"])
+    default = {k: p.default for k, p in inspect.signature(render_adaptive).parameters.items()}
+    return (f"scorer: {label}; {args.resolution}x{args.resolution}; {len(seeds)} seeds; reference {args.reference_spp} spp. "
+            "'true' / 'predicted': mean SSIM of a uniform image at that spp and the scorer's pooled score of it; "
+            "'map PCC': pixel PCC of its map against the true SSIM map. Error ratios: (1 - SSIM) of adaptive sampling "
+            f"at the same mean spp over uniform's (< 1: better), scoring every step, {default['probe_spp']}-spp probes "
+            f"past {default['map_spp']} spp; no clock, so these do not move with machine load.\n\n") + md_table(
+        ["scene", "spp", "true SSIM", "predicted", "map PCC", "adaptive / uniform", "oracle / uniform"], rows)
+
+
 def _at(log: list[dict], seconds: float) -> float:
     """True SSIM of the latest row at or before ``seconds`` (the image one would have had then)."""
     rows = [r for r in log if r["seconds"] <= seconds]
@@ -260,11 +328,7 @@ def render(args, out: Path) -> str:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import mitsuba as mi
 
-    from data_gen.plan import ImageTask, Job
-    from data_gen.render import scene_dict
-    from data_gen.scenes import get_scene
     from nriqa.render_loop import ensure_variant, is_jit_variant, render_adaptive, render_until
 
     variant = ensure_variant(args.backend)
@@ -274,12 +338,7 @@ def render(args, out: Path) -> str:
     seeds = list(range(1, args.render_repeats + 1))
     fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
     for ax, name in zip(axes[0], scenes):
-        spec = get_scene(name)
-        job = Job(name, 0, 1234, spec.reference_algorithm, (args.resolution, args.resolution), spec.max_depth, ())
-        scene = scene_dict(job, ImageTask("bench", "test", args.spp_per_step, 1, "b.exr", "r.exr"))
-        t0 = time.perf_counter()
-        reference = np.array(mi.render(mi.load_dict(scene), spp=args.reference_spp, seed=987654), dtype=np.float32)[..., :3]
-        print(f"  render {name}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        scene, reference = bench_scene(name, args)
         oracle = OracleScorer(reference)
         common = dict(time_budget_s=args.budget, initial_spp=args.spp_per_step, spp_per_step=args.spp_per_step,
                       reference=reference, max_overhead=args.max_overhead)
@@ -340,7 +399,7 @@ def render(args, out: Path) -> str:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("reports/scorer"))
-    ap.add_argument("--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,render")
+    ap.add_argument("--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,range,render")
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--patch-size", type=int, default=128)
@@ -357,6 +416,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--reference-spp", type=int, default=4096)
     ap.add_argument("--budget", type=float, default=2.0, help="seconds per render loop")
     ap.add_argument("--render-repeats", type=int, default=3, help="seeds per render loop")
+    ap.add_argument("--range-spp", type=lambda v: [int(x) for x in v.split(",")], default=[16, 64, 256],
+                    help="range section: mean spp at which the scorer and adaptive sampling are measured")
     ap.add_argument("--max-overhead", type=float, default=0.05, help="scorer time allowed, as a share of render time")
     ap.add_argument("--uniform-share", type=float, default=0.5, help="adaptive: share of each step spread evenly")
     ap.add_argument("--spp-per-step", type=int, default=4)
@@ -373,7 +434,8 @@ def main(argv: list[str] | None = None) -> None:
     parts = [f"# Scorer benchmark\n\n{cpu_name()}, {torch.get_num_threads()} torch threads, torch {torch.__version__}, "
              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n"]
     sections = {"throughput": lambda: throughput(args), "memory": lambda: memory(args),
-                "accuracy": lambda: accuracy(args), "render": lambda: render(args, args.out)}
+                "accuracy": lambda: accuracy(args), "range": lambda: scorer_range(args),
+                "render": lambda: render(args, args.out)}
     for name, fn in sections.items():
         if name in skip:
             continue

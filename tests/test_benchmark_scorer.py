@@ -1,4 +1,4 @@
-"""The scorer benchmark's render section runs end to end and writes its table (tiny, scalar_rgb)."""
+"""The scorer benchmark's range and render sections run end to end and write their tables (tiny, scalar_rgb)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def test_render_section_writes_every_method(tmp_path):
     init_worker(SCALAR_VARIANT, 1)
     try:
         load_benchmark().main(["--out", str(tmp_path), "--skip", "throughput,memory,accuracy", "--scenes", "cornell",
-                               "--resolution", "32", "--budget", "0.3", "--reference-spp", "32", "--render-repeats", "2",
+                               "--resolution", "32", "--budget", "0.3", "--reference-spp", "32", "--render-repeats", "2", "--range-spp", "4,8",
                                "--tile", "16", "--threads", "1"])
     finally:
         if previous is not None:
@@ -38,3 +38,7 @@ def test_render_section_writes_every_method(tmp_path):
     assert (tmp_path / "render_loops.png").stat().st_size > 0
     assert "nan" not in table.lower()
     assert len(list(tmp_path.glob("render_cornell_*.json"))) == 5
+    # the range section: one row per scene and spp, a map PCC and both error ratios
+    for spp in (4, 8):
+        (row,) = [line for line in table.splitlines() if line.startswith(f"| cornell | {spp} |")]
+        assert len(row.strip("|").split("|")) == 7
