@@ -25,8 +25,7 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
    (no scorer), early stopping at a predicted target, adaptive sampling per pixel, the same driven
    by the true SSIM map (an oracle: the headroom a perfect predictor would have), and adaptive
-   sampling per tile (``--tile``) and per pixel weighed by a timed cost map (``--cost-block``);
-   ``--render-repeats`` seeds each. Scoring is cadenced to stay
+   sampling per tile (``--tile``); ``--render-repeats`` seeds each. Scoring is cadenced to stay
    within ``--max-overhead`` of the render time; adaptive steps spend as many samples as uniform
    ones on average. The table gives each method's error ratio to uniform at equal time and the
    scorer's share of the time. Scorer: ``--render-checkpoint``, else the shipped ``fcnn_fast``,
@@ -350,9 +349,6 @@ def render(args, out: Path) -> str:
             "adaptive": lambda seed: render_adaptive(scene, scorer, uniform_share=args.uniform_share, seed=seed, **common),
             "adaptive (oracle map)": lambda seed: render_adaptive(scene, oracle, uniform_share=args.uniform_share, seed=seed, **common),
         }
-        if args.cost_block:
-            methods["adaptive (cost map)"] = lambda seed: render_adaptive(scene, scorer, uniform_share=args.uniform_share,
-                                                                          cost_block=args.cost_block, seed=seed, **common)
         if args.tile:
             methods[f"adaptive ({args.tile}px tiles)"] = lambda seed: render_adaptive(scene, scorer, tile=args.tile,
                                                                                      fraction=args.fraction, seed=seed, **common)
@@ -376,8 +372,7 @@ def render(args, out: Path) -> str:
                          f"{np.mean([r['setup_seconds'] for r in finals]):.1f}", "/".join(stops)])
             log = runs[0]
             ax.plot([r["seconds"] for r in log], [1 - r["true"] for r in log], label=method)
-            slug = method.replace(" (oracle map)", "_oracle").replace(" (cost map)", "_cost").replace(" ", "_")
-            slug = slug.replace("(", "").replace(")", "")
+            slug = method.replace(" (oracle map)", "_oracle").replace(" ", "_").replace("(", "").replace(")", "")
             (out / f"render_{name}_{slug}.json").write_text(
                 json.dumps([{k: v for k, v in r.items() if k != "spp_map"} for r in log], indent=1))
         ax.set(title=f"{name} {args.resolution}x{args.resolution}", xlabel="seconds (render + scoring)",
@@ -428,8 +423,6 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--spp-per-step", type=int, default=4)
     ap.add_argument("--target", type=float, default=0.9, help="predicted SSIM at which early stopping stops")
     ap.add_argument("--tile", type=int, default=16, help="also run adaptive per tile of this side (0: skip)")
-    ap.add_argument("--cost-block", type=int, default=32,
-                    help="also run adaptive per pixel weighed by a cost map timed in blocks of this side (0: skip)")
     ap.add_argument("--fraction", type=float, default=0.25)
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--render-checkpoint", type=Path)

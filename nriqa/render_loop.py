@@ -160,13 +160,6 @@ class PixelRenderer:
         return sums.T.reshape(self.height, self.width, 3)
 
 
-def _seconds(fn) -> float:
-    """Wall seconds of one call of ``fn``."""
-    t0 = time.perf_counter()
-    fn()
-    return time.perf_counter() - t0
-
-
 def _timed_score(scorer, image: np.ndarray):
     """``(result, seconds)`` of scoring ``image`` as linear HDR."""
     t0 = time.perf_counter()
@@ -397,75 +390,39 @@ def _expected_gain(qmap: np.ndarray, count: np.ndarray, tiles, k: int, higher_is
 
 
 def allocate_samples(
-    noise: np.ndarray, count: np.ndarray, budget: int, alpha: float, uniform_share: float, rng: np.random.Generator,
-    cost: np.ndarray | None = None,
+    noise: np.ndarray, count: np.ndarray, budget: int, alpha: float, uniform_share: float, rng: np.random.Generator
 ) -> np.ndarray:
-    """Integer samples per pixel for one step of ``budget`` samples' worth of render time.
+    """Integer samples per pixel for one step of ``budget`` samples in all.
 
     Model: a pixel's error falls as ``e = a / n**alpha`` with its sample count ``n`` (``a``: the
-    pixel's ``noise``, its error at one sample), and a sample in it costs ``c`` (``cost``, relative;
-    ``None``: the same everywhere). Minimising the summed error for a given total time ``T`` puts
-    ``n_p = K * w_p`` samples in pixel ``p`` with ``w = (a / c) ** (1 / (1 + alpha))`` and ``K`` such
-    that ``sum(c * n) = T`` (Lagrange). Each step moves towards that: the adaptive part of the time
-    goes to the pixels below their share of the new total, in proportion to their shortfall;
-    ``uniform_share`` of it is spread evenly as samples (the map is a prediction: every pixel
-    keeps being sampled). The step costs what ``budget`` samples spread evenly would; with equal
-    costs it is exactly ``budget`` samples. Fractions are rounded by systematic sampling with
-    ``rng`` (a pixel gets its fraction's extra sample with that probability, and the total is the
-    fractions' sum rounded; deterministic for a seed).
+    pixel's ``noise``, its error at one sample). Minimising the summed error over pixels for a
+    given total ``N`` puts ``n_p = N * w_p / sum(w)`` samples in pixel ``p`` with
+    ``w = a ** (1 / (1 + alpha))`` (Lagrange). Each step moves towards that: the adaptive part of
+    the budget goes to the pixels below their share of the new total, in proportion to their
+    shortfall; ``uniform_share`` of it is spread evenly (the map is a prediction: every pixel keeps
+    being sampled). Fractions are rounded by systematic sampling with ``rng`` (a pixel gets its
+    fraction's extra sample with that probability, and the total is exactly ``budget``;
+    deterministic for a seed).
     """
     if not 0.0 <= uniform_share <= 1.0:
         raise ValueError(f"uniform_share must be in [0, 1], got {uniform_share}")
     pixels = count.size
-    cost = np.ones(count.shape) if cost is None else np.asarray(cost, dtype=np.float64) / np.mean(cost)
-    noise = np.clip(np.nan_to_num(noise, nan=0.0, posinf=0.0), 0.0, None)
-    weight = np.power(noise / cost, 1.0 / (1.0 + alpha))
-    adaptive = budget * (1.0 - uniform_share)  # in samples of mean cost
+    weight = np.power(np.clip(np.nan_to_num(noise, nan=0.0, posinf=0.0), 0.0, None), 1.0 / (1.0 + alpha))
+    adaptive = budget * (1.0 - uniform_share)
     extra = np.full(count.shape, budget * uniform_share / pixels)
     if weight.sum() > 0:
-        target = (np.sum(cost * count) + adaptive) * weight / np.sum(cost * weight)
-        shortfall = np.clip(target - count, 0.0, None)
-        share = shortfall if shortfall.sum() > 0 else weight
-        extra += adaptive * share / np.sum(cost * share)
+        shortfall = np.clip((count.sum() + adaptive) * weight / weight.sum() - count, 0.0, None)
+        extra += adaptive * (shortfall / shortfall.sum() if shortfall.sum() > 0 else weight / weight.sum())
     else:
         extra += adaptive / pixels
-    total = int(round(float(extra.sum())))  # budget, with equal costs
     whole = np.floor(extra).astype(np.int64)
     # Systematic rounding: one random offset, cumulative fractions; each fraction is < 1, so a pixel
     # gains at most one sample, and the extras add up to the fractions' sum.
     ticks = np.floor(np.cumsum((extra - whole).ravel()) + rng.random()).astype(np.int64)
     out = whole.ravel() + np.diff(ticks, prepend=0)
-    short = total - int(out.sum())  # 0, or +-1 from floating point in the sums
+    short = budget - int(out.sum())  # 0, or +-1 from floating point in the sums
     out[np.argsort(whole.ravel() - extra.ravel(), kind="stable")[: abs(short)]] += np.sign(short)
     return np.clip(out, 0, None).reshape(count.shape)
-
-
-def _blocks(height: int, width: int, side: int) -> list[tuple[slice, slice]]:
-    """``side`` x ``side`` blocks covering an image (edge blocks may be smaller)."""
-    return [(slice(y, y + side), slice(x, x + side)) for y in range(0, height, side) for x in range(0, width, side)]
-
-
-def _timed_blocks(renderer: PixelRenderer, counts: np.ndarray, side: int, seed: int, overhead: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Render ``counts`` one block at a time: ``(sums, cost)``, ``cost`` per pixel its block's
-    seconds per sample (less the fixed ``overhead`` of a call), relative to the mean over pixels.
-
-    Path cost differs across an image (measured on the caustic scene at 128x128: 2.7x between
-    32x32 blocks; a sample through glass or on a glossy sphere traces more bounces than one on the
-    background), so the samples an error map asks for may take longer than a uniform step's.
-    """
-    sums = np.zeros((*counts.shape, 3))
-    per_pixel = np.zeros(counts.shape)
-    for k, (ys, xs) in enumerate(_blocks(*counts.shape, side)):
-        block = np.zeros_like(counts)
-        block[ys, xs] = counts[ys, xs]
-        t0 = time.perf_counter()
-        sums += renderer(block, seed=seed + k)
-        seconds = time.perf_counter() - t0
-        per_pixel[ys, xs] = max(seconds - overhead, 0.0) / max(int(block.sum()), 1)
-    floor = 0.1 * float(np.median(per_pixel))  # a block timed at or below the overhead: not free
-    cost = np.maximum(per_pixel, floor) if floor > 0 else np.ones(counts.shape)
-    return sums, cost / cost.mean()
 
 
 def _budget_spent(row: dict, count: np.ndarray, total_spp: float | None, time_budget_s: float | None) -> bool:
@@ -495,7 +452,6 @@ def render_adaptive(
     growth: float = 0.25,
     map_spp: float | None = 64,
     probe_spp: int = 32,
-    cost_block: int | None = None,
     reference: np.ndarray | None = None,
     seed: int = 0,
     warmup: bool = True,
@@ -531,12 +487,6 @@ def render_adaptive(
     averaged over maps like ``a`` (the ``a / n`` form would call a dim, noisy render nearly
     converged); for the MAE, the mean of ``a / sqrt(n)``.
 
-    Samples cost more in some pixels than in others (longer paths), so a step placed by error
-    alone takes longer than a uniform one. Per pixel, the first probe is rendered in blocks of
-    ``cost_block`` pixels, each timed (less a call's fixed cost, measured in the warm-up): that
-    cost map weighs the allocation from then on (:func:`allocate_samples`: a step costs about
-    what a uniform one would, and a pixel's share falls with its cost).
-
     Stops when the mean samples per pixel reach ``total_spp`` or the render + scoring time reaches
     ``time_budget_s`` (give at least one).
 
@@ -557,8 +507,6 @@ def render_adaptive(
         map_spp: per pixel, the most samples per pixel at which the scorer rates the image itself;
             beyond, it rates probes. ``None``: always the image.
         probe_spp: per pixel, samples per pixel of a probe (within the scorer's range).
-        cost_block: per pixel, side of the timed blocks of the first probe; ``None`` (or a block
-            as large as the image): every sample costs the same.
         reference: converged ``(H, W, 3)`` image; adds the true mean SSIM to every row.
         seed: base seed; every render call gets a distinct one.
         warmup: run every kernel once, untimed (LLVM variants), and score once to learn the cost.
@@ -585,19 +533,14 @@ def render_adaptive(
     height, width = renderer.height, renderer.width
     alpha = 1.0 if scorer.higher_is_better else 0.5
     rng = np.random.default_rng(seed)
-    setup = score_cost = overhead = 0.0
+    setup = cost = 0.0
     if warmup:
         t0 = time.perf_counter()
         sums = renderer(np.full((height, width), initial_spp), seed=2**31 - 1)
         renderer(np.full((height, width), spp_per_step), seed=2**31 - 2)
-        score_cost = _timed_score(scorer, (sums / initial_spp).astype(np.float32))[1]
-        one = np.zeros((height, width), dtype=np.int64)
-        one[0, 0] = 1
-        overhead = min(_seconds(lambda k=k: renderer(one, seed=2**31 - 3 - k)) for k in range(3))  # a call's fixed cost
+        cost = _timed_score(scorer, (sums / initial_spp).astype(np.float32))[1]
         setup = time.perf_counter() - t0
-    clock = _Clock(reference, setup, score_cost, max_overhead)
-    timed_cost = cost_block is not None and len(_blocks(height, width, cost_block)) > 1
-    cost = None
+    clock = _Clock(reference, setup, cost, max_overhead)
 
     t0 = time.perf_counter()
     sums = renderer(np.full((height, width), initial_spp), seed=seed)
@@ -638,14 +581,10 @@ def render_adaptive(
             # A map is due past the scorer's range: this step is a fresh uniform probe (never two in a
             # row), scored alone next, and folded into the image like any other samples.
             extra = np.full((height, width), probe_spp)
-            if timed_cost and cost is None:  # the first probe, block by block: the cost map
-                probe, cost = _timed_blocks(renderer, extra, cost_block, seed + calls, overhead)
-                calls += len(_blocks(height, width, cost_block)) - 1
-            else:
-                probe = renderer(extra, seed=seed + calls)
+            probe = renderer(extra, seed=seed + calls)
             sums += probe
         else:
-            extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng, cost)
+            extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng)
             sums += renderer(extra, seed=seed + calls)
         calls += 1
         count += extra

@@ -33,11 +33,11 @@ def test_render_section_writes_every_method(tmp_path):
         if previous is not None:
             mi.set_variant(previous)
     table = (tmp_path / "scorer.md").read_text()
-    for method in ("uniform", "early stop", "adaptive", "adaptive (oracle map)", "adaptive (16px tiles)", "adaptive (cost map)"):
+    for method in ("uniform", "early stop", "adaptive", "adaptive (oracle map)", "adaptive (16px tiles)"):
         assert f"| cornell | {method} |" in table
     assert (tmp_path / "render_loops.png").stat().st_size > 0
     assert "nan" not in table.lower()
-    assert len(list(tmp_path.glob("render_cornell_*.json"))) == 6
+    assert len(list(tmp_path.glob("render_cornell_*.json"))) == 5
     # the range section: one row per scene and spp, a map PCC and both error ratios
     for spp in (4, 8):
         (row,) = [line for line in table.splitlines() if line.startswith(f"| cornell | {spp} |")]

@@ -3,8 +3,6 @@ loops and tiles; llvm_ad_rgb, where it works, for per-pixel sampling (PixelRende
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import torch
@@ -17,11 +15,9 @@ from data_gen.render import scene_dict  # noqa: E402
 from nriqa.models import create_model  # noqa: E402
 from nriqa.render_loop import (  # noqa: E402
     PixelRenderer,
-    _blocks,
     _Clock,
     _expected_gain,
     _next_step,
-    _timed_blocks,
     allocate_samples,
     render_adaptive,
     render_until,
@@ -215,42 +211,6 @@ def test_allocate_samples_is_deterministic():
         allocate_samples(noise, np.ones((16, 16)), 10, 1.0, 1.5, np.random.default_rng(0))
 
 
-def test_allocate_samples_weighs_the_cost_of_a_sample():
-    noise = np.random.default_rng(4).random((8, 8)) + 0.5
-    count = np.full((8, 8), 4.0)
-    args = (noise, count, 256, 1.0, 0.25)
-    # equal costs, any scale: the same samples as no cost at all
-    np.testing.assert_array_equal(allocate_samples(*args, np.random.default_rng(2)),
-                                  allocate_samples(*args, np.random.default_rng(2), cost=np.full((8, 8), 3.0)))
-    cost = np.ones((8, 8))
-    cost[:, 4:] = 4.0  # right half: a sample takes 4x as long
-    extra = allocate_samples(*args, np.random.default_rng(2), cost=cost)
-    # a step takes about the time of 256 samples spread evenly (cost 2.5 on average), not 256 samples
-    assert float((extra * cost).sum()) == pytest.approx(256 * cost.mean(), rel=0.02)
-    assert extra[:, 4:].sum() < extra[:, :4].sum()
-    # Long run with equal noise: n ~ (a / c) ** (1 / 2), so the costly half gets half the samples.
-    flat, count = np.ones((8, 8)), np.full((8, 8), 4.0)
-    for _ in range(200):
-        count += allocate_samples(flat, count, 256, 1.0, 0.0, np.random.default_rng(_), cost=cost)
-    assert count[:, 4:].mean() / count[:, :4].mean() == pytest.approx(0.5, rel=0.1)
-
-
-def test_timed_blocks_find_the_costly_pixels():
-    class SlowRight:
-        """Sleeps 8x longer per sample in the right half; sums are the counts."""
-
-        def __call__(self, counts, seed):
-            time.sleep(2e-5 * (counts[:, :16].sum() + 8 * counts[:, 16:].sum()))
-            return np.repeat(counts[..., None].astype(float), 3, axis=2)
-
-    counts = np.full((32, 32), 2)
-    sums, cost = _timed_blocks(SlowRight(), counts, 16, seed=0, overhead=0.0)
-    np.testing.assert_array_equal(sums[..., 0], counts)
-    assert cost.mean() == pytest.approx(1.0)
-    assert cost[:, 16:].mean() / cost[:, :16].mean() > 3  # 8 up to sleep's own overhead
-    assert len(_blocks(32, 32, 16)) == 4 and len(_blocks(30, 20, 16)) == 4
-
-
 @pytest.fixture(scope="module")
 def llvm_scene():
     """The test scene in llvm_ad_rgb (skipped where libLLVM 19 is missing: CI installs it)."""
@@ -342,13 +302,3 @@ def test_render_adaptive_probes_beyond_the_scorers_range(llvm_scene):
     # Probes are uniform and count like any samples; the model's prediction tracks the true score.
     assert counts.min() >= 4 + 4 * probes and log[-1]["spp"] == pytest.approx(counts.mean())
     assert log[-1]["predicted"] == pytest.approx(log[-1]["true"], abs=0.1)
-
-
-def test_render_adaptive_times_the_first_probe_for_a_cost_map(llvm_scene):
-    scene, reference = llvm_scene
-    scorer = RecordingScorer(reference)
-    image, log = render_adaptive(scene, scorer, total_spp=40, initial_spp=4, spp_per_step=4, map_spp=8, probe_spp=4,
-                                 cost_block=SIZE // 2, max_overhead=None, reference=reference, seed=2, warmup=False)
-    counts = log[-1]["spp_map"]
-    assert log[-1]["stop"] == "spp" and np.isfinite(image).all() and log[-1]["spp"] == pytest.approx(counts.mean())
-    assert log[-1]["true"] > log[0]["true"] and counts.min() >= 4 + 4 * 2
