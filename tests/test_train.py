@@ -91,6 +91,7 @@ def test_several_dataset_roots_from_the_command_line(synthetic_dataset, tmp_path
     metrics, objects = train(cfg)
     assert "train/loss" in metrics
     assert any(p.record.spp == 256 for p in objects["datamodule"].train_pairs)
+    assert load_net_from_checkpoint(objects["best_ckpt"]).output == "map"  # weights_only: no ListConfig inside
 
 
 def test_unknown_scene_is_a_one_line_error(synthetic_dataset, tmp_path):

@@ -64,8 +64,10 @@ class NRIQADataModule(L.LightningDataModule):
         unknown = set(jitter) - {"hsv", "geometric"}
         if unknown:
             raise ValueError(f"unknown jitter switches {sorted(unknown)}; use hsv and geometric")
+        # plain str / list before saving: a checkpoint must load with weights_only=True (no ListConfig)
+        data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         self.save_hyperparameters(logger=False)
-        self.data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
+        self.data_dir = data_dir
         self.val_scene = val_scene
         self.patch_size = patch_size
         self.target = target
