@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
@@ -92,8 +91,8 @@ class NRIQADataModule(L.LightningDataModule):
         if self.train_set is not None:
             return
         train, val = split_by_scene(read_datasets(self.data_dir), self.val_scene)
-        self.train_pairs = load_pairs(Path(), train)
-        self.val_pairs = load_pairs(Path(), val)
+        self.train_pairs = load_pairs(train)
+        self.val_pairs = load_pairs(val)
         self.train_set = TrainPatches(
             self.train_pairs,
             self.patch_size,

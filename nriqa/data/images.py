@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from pathlib import Path
 
 import torch
 from torch import Tensor
@@ -48,24 +47,24 @@ def load_ldr_many(paths: list[str | os.PathLike], chunk: int = 64) -> list[Tenso
     return out
 
 
-def load_pairs(root: str | os.PathLike, records: list[Record]) -> list[ImagePair]:
+def load_pairs(records: list[Record]) -> list[ImagePair]:
     """Load and tone-map every record's image and its reference, each file once.
 
-    References are shared by many noisy images, so each is loaded once and the pairs point at
-    the same tensor.
+    Paths are taken as the records give them: :func:`nriqa.manifest.read_datasets` puts each
+    dataset's root in front. References are shared by many noisy images, so each is loaded once
+    and the pairs point at the same tensor.
 
     Raises:
         ValueError: a noisy image and its reference differ in size (the message names both files).
     """
-    root = Path(root)
     files = list(dict.fromkeys([p for rec in records for p in (rec.reference, rec.path)]))
-    ldr = dict(zip(files, load_ldr_many([root / f for f in files])))
+    ldr = dict(zip(files, load_ldr_many(files)))
     pairs = []
     for rec in records:
         noisy, ref = ldr[rec.path], ldr[rec.reference]
         if noisy.shape != ref.shape:
             raise ValueError(
-                f"{root / rec.path} is {tuple(noisy.shape[1:])} but its reference {root / rec.reference} is "
+                f"{rec.path} is {tuple(noisy.shape[1:])} but its reference {rec.reference} is "
                 f"{tuple(ref.shape[1:])}; re-render one of them"
             )
         pairs.append(ImagePair(rec, noisy, ref))
