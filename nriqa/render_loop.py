@@ -265,9 +265,10 @@ def render_until(
 
     Each step renders ``spp_per_step`` samples per pixel, or a multiple of it up to ``growth``
     times those done so far, with a new seed and folds them into the running mean; then, when
-    scoring is due (see ``max_overhead``), the scorer rates the mean (as linear HDR). The loop stops after the first scoring whose predicted pooled score reaches the
-    target (``>=`` for SSIM, ``<=`` for the patch model's MAE), when the time budget (render +
-    scoring seconds) is spent, or at ``max_spp``.
+    scoring is due (see ``max_overhead``), the scorer rates the mean (as linear HDR). The loop
+    stops after the first scoring whose predicted pooled score reaches the target (``>=`` for
+    SSIM, ``<=`` for the patch model's MAE), when the time budget (render + scoring seconds) is
+    spent, or at ``max_spp``.
 
     Args:
         scene: a Mitsuba scene dict (with film and sampler) or a loaded ``mi.Scene``.
