@@ -232,27 +232,6 @@ def render_scorer(args) -> tuple[Scorer, str]:
     return Scorer(create_model("fcnn_fast")), "UNTRAINED fcnn_fast (timings only; early stopping and tile choice are meaningless)"
 
 
-class OracleScorer:
-    """The true SSIM map against the reference, in the Scorer's interface: the best any predictor
-    could do, so adaptive sampling's headroom shows even before trained weights exist."""
-
-    higher_is_better = True
-    quantity = "ssim"
-
-    def __init__(self, reference: np.ndarray):
-        from nriqa.tonemap import tonemap
-
-        self.ref = tonemap(torch.from_numpy(reference).permute(2, 0, 1)[None])
-
-    def __call__(self, image, *, hdr=None):
-        from nriqa.scorer import ScoreResult
-        from nriqa.ssim import ssim_map
-        from nriqa.tonemap import tonemap
-
-        m = ssim_map(tonemap(torch.from_numpy(np.ascontiguousarray(image)).permute(2, 0, 1)[None]), self.ref)[0, 0].numpy()
-        return ScoreResult(m, float(m.mean()), "ssim", True)
-
-
 _SCENES: dict[tuple, tuple[dict, np.ndarray]] = {}
 
 
@@ -281,7 +260,7 @@ def scorer_range(args) -> str:
     """The scorer across sample counts, without timing: how well its map follows the true one, and
     what adaptive sampling driven by it gains at equal samples (the loops' own code, no clock)."""
     from nriqa.correlation import pcc
-    from nriqa.render_loop import ensure_variant, render_adaptive
+    from nriqa.render_loop import ReferenceScorer, ensure_variant, render_adaptive
 
     ensure_variant(args.backend)
     scorer, label = render_scorer(args)
@@ -289,7 +268,7 @@ def scorer_range(args) -> str:
     seeds = list(range(1, args.render_repeats + 1))
     for name in args.scenes.split(","):
         scene, reference = bench_scene(name, args)
-        oracle = OracleScorer(reference)
+        oracle = ReferenceScorer(reference)
         for spp in args.range_spp:
             runs = {"uniform": [], "predicted": [], "oracle": []}
             maps = []
@@ -329,7 +308,7 @@ def render(args, out: Path) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from nriqa.render_loop import ensure_variant, is_jit_variant, render_adaptive, render_until
+    from nriqa.render_loop import ReferenceScorer, ensure_variant, is_jit_variant, render_adaptive, render_until
 
     variant = ensure_variant(args.backend)
     scorer, label = render_scorer(args)
@@ -339,7 +318,7 @@ def render(args, out: Path) -> str:
     fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
     for ax, name in zip(axes[0], scenes):
         scene, reference = bench_scene(name, args)
-        oracle = OracleScorer(reference)
+        oracle = ReferenceScorer(reference)
         common = dict(time_budget_s=args.budget, initial_spp=args.spp_per_step, spp_per_step=args.spp_per_step,
                       reference=reference, max_overhead=args.max_overhead)
         methods = {

@@ -41,11 +41,11 @@ import numpy as np
 import torch
 
 from data_gen.render import MAX_WAVEFRONT
-from nriqa.scorer import Scorer
+from nriqa.scorer import Scorer, ScoreResult
 from nriqa.ssim import ssim_map
 from nriqa.tonemap import tonemap
 
-__all__ = ["render_until", "render_adaptive", "true_ssim", "ensure_variant", "PixelRenderer"]
+__all__ = ["render_until", "render_adaptive", "true_ssim", "ReferenceScorer", "ensure_variant", "PixelRenderer"]
 
 log = logging.getLogger(__name__)
 
@@ -65,11 +65,33 @@ def ensure_variant(requested: str = "auto", threads: int | None = None) -> str:
     return variant
 
 
+def _tonemapped(image: np.ndarray) -> torch.Tensor:
+    """``(1, 3, H, W)`` tone-mapped tensor of an ``(H, W, 3)`` linear image."""
+    return tonemap(torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None])
+
+
+class ReferenceScorer:
+    """The true SSIM map of an image against its converged reference, called like a :class:`Scorer`.
+
+    What a perfect scorer would predict: with it the loops show adaptive sampling's headroom (the
+    oracle rows of ``benchmarks/scorer.py``) and stopping rules can be tested against the truth.
+    Images are linear ``(H, W, 3)`` renders, tone-mapped like the reference (``hdr`` is ignored).
+    """
+
+    higher_is_better = True
+    quantity = "ssim"
+
+    def __init__(self, reference: np.ndarray):
+        self.reference = _tonemapped(reference)
+
+    def __call__(self, image: np.ndarray, *, hdr: bool | None = None) -> ScoreResult:
+        qmap = ssim_map(_tonemapped(image), self.reference)[0, 0].numpy()
+        return ScoreResult(qmap, float(qmap.mean()), self.quantity, True)
+
+
 def true_ssim(image: np.ndarray, reference: np.ndarray) -> float:
     """Mean SSIM map of the tone-mapped ``(H, W, 3)`` linear image against the tone-mapped reference."""
-    x = tonemap(torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None])
-    y = tonemap(torch.from_numpy(np.ascontiguousarray(reference, dtype=np.float32)).permute(2, 0, 1)[None])
-    return float(ssim_map(x, y).mean())
+    return ReferenceScorer(reference)(image).score
 
 
 def _load(scene):
@@ -175,7 +197,7 @@ class _Clock:
         self.setup = setup
         self.score_cost = score_cost  # seconds of the last scoring (the warm-up's at first)
         self.max_overhead = max_overhead
-        self.reference = reference
+        self.truth = ReferenceScorer(reference) if reference is not None else None
         self.log: list[dict] = []
 
     def score_due(self) -> bool:
@@ -200,7 +222,7 @@ class _Clock:
             "spp_max": float(spp.max()),
             "predicted": predicted,
             "scored": scored,
-            "true": true_ssim(image, self.reference) if self.reference is not None else None,
+            "true": self.truth(image).score if self.truth is not None else None,
         }
         self.log.append(row)
         return row

@@ -15,6 +15,7 @@ from data_gen.render import scene_dict  # noqa: E402
 from nriqa.models import create_model  # noqa: E402
 from nriqa.render_loop import (  # noqa: E402
     PixelRenderer,
+    ReferenceScorer,
     _Clock,
     _expected_gain,
     _next_step,
@@ -23,7 +24,7 @@ from nriqa.render_loop import (  # noqa: E402
     render_until,
     true_ssim,
 )
-from nriqa.scorer import Scorer, ScoreResult  # noqa: E402
+from nriqa.scorer import Scorer  # noqa: E402
 
 SIZE = 32
 
@@ -49,24 +50,18 @@ def scorer():
     return Scorer(create_model("fcnn_fast"))
 
 
-class OracleScorer:
-    """Duck-typed scorer whose map is the true SSIM map: makes the stopping rule testable."""
-
-    higher_is_better = True
-
-    def __init__(self, reference):
-        self.reference = reference
-
-    def __call__(self, image, *, hdr=None):
-        from nriqa.ssim import ssim_map
-        from nriqa.tonemap import tonemap
-
-        x, y = (tonemap(torch.from_numpy(np.ascontiguousarray(a)).permute(2, 0, 1)[None]) for a in (image, self.reference))
-        m = ssim_map(x, y)[0, 0].numpy()
-        return ScoreResult(m, float(m.mean()), "ssim", True)
-
-
 pytestmark = pytest.mark.usefixtures("one_thread")
+
+
+def test_reference_scorer_is_the_true_ssim_map(reference):
+    truth = ReferenceScorer(reference)
+    same = truth(reference)
+    assert same.map.shape == (SIZE, SIZE) and np.allclose(same.map, 1.0, atol=1e-4) and same.quantity == "ssim"
+    noisy = reference + np.random.default_rng(0).normal(0, 0.1, reference.shape).astype(np.float32)
+    result = truth(noisy)
+    assert result.score == pytest.approx(float(result.map.mean())) and result.score < 0.99
+    assert result.score == pytest.approx(true_ssim(noisy, reference))
+    assert truth.higher_is_better
 
 
 def test_render_until_runs_to_max_spp(scene, scorer, reference):
@@ -103,13 +98,13 @@ def test_next_step_grows_and_is_cut_to_the_budget():
 
 
 def test_render_until_stops_at_target(scene, reference):
-    oracle = OracleScorer(reference)
+    oracle = ReferenceScorer(reference)
     _, log = render_until(scene, oracle, target_score=0.5, time_budget_s=60, spp_per_step=2, max_spp=256, max_overhead=None)
     assert log[-1]["stop"] == "target" and log[-1]["predicted"] >= 0.5
     assert all(r["predicted"] < 0.5 for r in log[:-1])
 
 
-class SlowScorer(OracleScorer):
+class SlowScorer(ReferenceScorer):
     """The oracle, made to cost ``delay`` seconds per call."""
 
     def __init__(self, reference, delay):
@@ -145,7 +140,7 @@ def test_render_until_time_budget_and_uniform_baseline(scene):
 
 
 def test_render_adaptive_refines_some_tiles_only(scene, reference):
-    oracle = OracleScorer(reference)
+    oracle = ReferenceScorer(reference)
     image, log = render_adaptive(scene, oracle, total_spp=7, initial_spp=4, spp_per_step=1, tile=16, fraction=0.25,
                                  reference=reference, max_overhead=None)
     counts = log[-1]["spp_map"]
@@ -253,7 +248,7 @@ def test_pixel_renderer_matches_mi_render_and_is_deterministic(llvm_scene):
 
 def test_render_adaptive_per_pixel(llvm_scene):
     scene, reference = llvm_scene
-    oracle = OracleScorer(reference)
+    oracle = ReferenceScorer(reference)
     image, log = render_adaptive(scene, oracle, total_spp=24, initial_spp=4, spp_per_step=4, reference=reference, seed=3)
     counts = log[-1]["spp_map"]
     assert log[-1]["stop"] == "spp" and counts.mean() >= 24 and np.isfinite(image).all()
@@ -269,7 +264,7 @@ def test_render_adaptive_per_pixel(llvm_scene):
     np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
 
 
-class RecordingScorer(OracleScorer):
+class RecordingScorer(ReferenceScorer):
     """The oracle, keeping every image it is asked to rate."""
 
     def __init__(self, reference):
