@@ -269,6 +269,51 @@ def _running_mean(mean: np.ndarray | None, value: np.ndarray, share: float) -> n
     return value if mean is None else mean + (value - mean) * share
 
 
+def _error(qmap: np.ndarray, higher_is_better: bool) -> np.ndarray:
+    """Predicted error per pixel, ``1 - SSIM`` or the MAE, finite and >= 0 (NaN counts as the worst seen)."""
+    error = 1.0 - np.asarray(qmap, dtype=np.float64) if higher_is_better else np.asarray(qmap, dtype=np.float64)
+    finite = np.isfinite(error)
+    worst = float(error[finite].max()) if finite.any() else 1.0
+    return np.clip(np.where(finite, error, worst), 0.0, None)
+
+
+class _ErrorModel:
+    """Per pixel noise of a render, estimated from the scorer's maps, and the quality it predicts.
+
+    A map rated at ``n`` samples per pixel gives each pixel's error ``e`` (``1 - SSIM``, or the
+    MAE) and so its noise ``a = e n**alpha`` (``alpha`` 1 for SSIM, whose error goes as the noise
+    variance; 1/2 for the MAE) and, for SSIM, its odds ``b = e n / (1 - e)``: ``1 - SSIM = v / (s + v)``
+    with the noise variance ``v ~ 1/n`` saturates at 1 and is ``b / (b + n)``. Both are means over
+    every map so far, weighted by their samples. The prediction at counts ``n`` is the mean of
+    ``1 - b / (b + n)`` for SSIM (``a / n`` would call a dim, noisy render nearly converged), of
+    ``a / sqrt(n)`` for the MAE.
+    """
+
+    def __init__(self, higher_is_better: bool):
+        self.higher_is_better = higher_is_better
+        self.alpha = 1.0 if higher_is_better else 0.5
+        self.noise: np.ndarray | None = None
+        self.odds: np.ndarray | None = None
+        self.samples = 0.0
+
+    def add(self, qmap: np.ndarray, n: np.ndarray | float) -> None:
+        """Fold in a map rated on an image of ``n`` samples per pixel (an array or one count)."""
+        error = _error(qmap, self.higher_is_better)
+        samples = float(np.mean(n))
+        self.samples += samples
+        share = samples / self.samples
+        self.noise = _running_mean(self.noise, error * np.power(n, self.alpha), share)
+        if self.higher_is_better:
+            error = np.clip(error, 0.0, 0.999)
+            self.odds = _running_mean(self.odds, error * n / (1.0 - error), share)
+
+    def predict(self, count: np.ndarray | float) -> float:
+        """Predicted pooled score of the image at ``count`` samples per pixel."""
+        if self.higher_is_better:
+            return float(1.0 - (self.odds / (self.odds + count)).mean())
+        return float((self.noise / np.power(count, self.alpha)).mean())
+
+
 def render_until(
     scene,
     scorer: Scorer | None,
@@ -280,6 +325,8 @@ def render_until(
     max_spp: int | None = None,
     max_overhead: float | None = 0.05,
     growth: float = 0.25,
+    map_spp: float | None = 64,
+    probe_spp: int = 32,
     seed: int = 0,
     warmup: bool = True,
 ) -> tuple[np.ndarray, list[dict]]:
@@ -287,10 +334,15 @@ def render_until(
 
     Each step renders ``spp_per_step`` samples per pixel, or a multiple of it up to ``growth``
     times those done so far, with a new seed and folds them into the running mean; then, when
-    scoring is due (see ``max_overhead``), the scorer rates the mean (as linear HDR). The loop
-    stops after the first scoring whose predicted pooled score reaches the target (``>=`` for
-    SSIM, ``<=`` for the patch model's MAE), when the time budget (render + scoring seconds) is
-    spent, or at ``max_spp``.
+    scoring is due (see ``max_overhead``), the scorer rates the mean (as linear HDR). A scorer is
+    only right on images like those it learnt from (the shipped models: at most 64 spp), so once
+    the image passes ``map_spp`` samples per pixel, a due scoring rates a fresh step of
+    ``probe_spp`` samples alone (a probe, folded into the image like any step), and the prediction
+    is the error model's at the image's samples per pixel (for SSIM the mean of
+    ``1 - b / (b + n)``, ``b`` from every map so far; see :func:`render_adaptive`), updated every
+    step. The loop stops at the first prediction that reaches the target (``>=`` for SSIM, ``<=``
+    for the patch model's MAE), when the time budget (render + scoring seconds) is spent, or at
+    ``max_spp``.
 
     Args:
         scene: a Mitsuba scene dict (with film and sampler) or a loaded ``mi.Scene``.
@@ -306,6 +358,10 @@ def render_until(
             stop can come up to that many steps late: the price of a bounded overhead.
         growth: steps grow to this share of the samples per pixel done (0: ``spp_per_step``
             throughout); the last step is cut to what the time budget has left.
+        map_spp: the most samples per pixel at which the scorer rates the image itself; beyond,
+            it rates probes. ``None``: always the image.
+        probe_spp: samples per pixel of a probe (rounded to whole ``spp_per_step``; within the
+            scorer's range). A probe is skipped when the budget has no room for it.
         seed: seed of the first step; step ``k`` uses ``seed + k``.
         warmup: render once, untimed and discarded, to JIT-compile the kernel (LLVM variants),
             and score that image once to learn the scorer's cost.
@@ -314,11 +370,13 @@ def render_until(
         ``(image, log)``: the ``(H, W, 3)`` float32 linear mean, and one dict per step with
         ``step, seconds, render_seconds, score_seconds, setup_seconds, spp, spp_min, spp_max,
         predicted, scored, true`` (``predicted`` is the latest prediction, ``scored`` whether this
-        step made it; ``predicted``/``true`` are ``None`` without scorer/reference) and, in the last
-        row, ``stop``: ``"target"``, ``"time"`` or ``"max_spp"``.
+        step ran the scorer; ``predicted``/``true`` are ``None`` without scorer/reference) and, in
+        the last row, ``stop``: ``"target"``, ``"time"`` or ``"max_spp"``.
     """
     _check_overhead(max_overhead)
     _check_growth(growth)
+    if not probe_spp >= 1:
+        raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
     loaded = _load(scene)
     pixels = int(np.prod(loaded.sensors()[0].film().crop_size()))
     setup = cost = 0.0
@@ -331,14 +389,22 @@ def render_until(
             cost = _timed_score(scorer, img)[1]
         setup = time.perf_counter() - t0
     clock = _Clock(reference, setup, cost, max_overhead)
+    model = _ErrorModel(scorer.higher_is_better) if scorer is not None else None
+    # Whole multiples of spp_per_step (a loaded scene's samples_per_pass, if set, must divide it).
+    probe_k = spp_per_step * max(1, round(probe_spp / spp_per_step))
     mean: np.ndarray | None = None
     spp = 0
     step = 0
     predicted = None
     while True:
-        # Whole multiples of spp_per_step (a loaded scene's samples_per_pass, if set, must divide it).
-        k = spp_per_step * max(1, int(_next_step(spp, spp_per_step, growth, clock, time_budget_s,
-                                                 None if max_spp is None else max_spp - spp, pixels) // spp_per_step))
+        left = None if max_spp is None else max_spp - spp
+        beyond = model is not None and map_spp is not None and spp > map_spp  # past the scorer's range
+        # A map due past the scorer's range comes from this step alone, if a probe fits the budget.
+        probe = beyond and clock.score_due() and _next_step(spp, probe_k, 0.0, clock, time_budget_s, left, pixels) >= probe_k
+        if probe:
+            k = probe_k
+        else:
+            k = spp_per_step * max(1, int(_next_step(spp, spp_per_step, growth, clock, time_budget_s, left, pixels) // spp_per_step))
         t0 = time.perf_counter()
         img = _render(loaded, k, seed=seed + step)
         clock.render += time.perf_counter() - t0
@@ -346,11 +412,19 @@ def render_until(
         mean = _running_mean(mean, img, k / (spp + k))
         spp += k
         last_step = max_spp is not None and spp + spp_per_step > max_spp
-        scored = scorer is not None and (clock.score_due() or last_step)
-        if scored:
-            predicted = clock.scored(scorer, mean).score
+        if probe:
+            model.add(clock.scored(scorer, img).map, k)
+            scored = True
+        else:
+            scored = model is not None and not beyond and (clock.score_due() or last_step)
+            if scored:
+                result = clock.scored(scorer, mean)
+                predicted = result.score
+                model.add(result.map, spp)
+        if beyond and model.noise is not None:
+            predicted = model.predict(spp)
         row = clock.row(mean, spp, predicted, scored)
-        if scored and _reached(scorer, predicted, target_score):
+        if (scored or beyond) and predicted is not None and _reached(scorer, predicted, target_score):
             row["stop"] = "target"
         elif row["seconds"] >= time_budget_s:
             row["stop"] = "time"
@@ -385,14 +459,6 @@ def _sensor_index(loaded) -> dict[tuple[int, int, int, int], int]:
         (x, y), (w, h) = sensor.film().crop_offset(), sensor.film().crop_size()
         index.setdefault((int(x), int(y), int(w), int(h)), i)
     return index
-
-
-def _error(qmap: np.ndarray, higher_is_better: bool) -> np.ndarray:
-    """Predicted error per pixel, ``1 - SSIM`` or the MAE, finite and >= 0 (NaN counts as the worst seen)."""
-    error = 1.0 - np.asarray(qmap, dtype=np.float64) if higher_is_better else np.asarray(qmap, dtype=np.float64)
-    finite = np.isfinite(error)
-    worst = float(error[finite].max()) if finite.any() else 1.0
-    return np.clip(np.where(finite, error, worst), 0.0, None)
 
 
 def _expected_gain(qmap: np.ndarray, count: np.ndarray, tiles, k: int, higher_is_better: bool) -> np.ndarray:
@@ -554,7 +620,6 @@ def render_adaptive(
         raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
     renderer = PixelRenderer(_load(scene))
     height, width = renderer.height, renderer.width
-    alpha = 1.0 if scorer.higher_is_better else 0.5
     rng = np.random.default_rng(seed)
     setup = cost = 0.0
     if warmup:
@@ -571,29 +636,21 @@ def render_adaptive(
     mean = (sums / count[..., None]).astype(np.float32)
     clock.render += time.perf_counter() - t0
     calls = 1
-    noise = odds = predicted = None
-    weight = 0.0
-    probe = None
+    model = _ErrorModel(scorer.higher_is_better)
+    predicted = probe = None
     while True:
         beyond = map_spp is not None and float(count.mean()) > map_spp  # past the scorer's range
-        scored = noise is None or probe is not None or (clock.score_due() and not beyond)
+        scored = model.noise is None or probe is not None or (clock.score_due() and not beyond)
         if scored:
             if probe is None:  # the image itself is in the scorer's range
                 result = clock.scored(scorer, mean)
-                predicted, n = result.score, count.copy()
+                predicted = result.score
+                model.add(result.map, count.copy())
             else:  # the probe just rendered
-                result = clock.scored(scorer, (probe / probe_spp).astype(np.float32))
-                n, probe = probe_spp, None
-            error = _error(result.map, scorer.higher_is_better)
-            samples = float(np.mean(n))
-            weight += samples
-            share = samples / weight  # the mean over maps, weighted by their samples
-            noise = _running_mean(noise, error * n**alpha, share)
-            if scorer.higher_is_better:  # 1 - SSIM = v / (s + v) with the noise variance v ~ 1/n: odds = e n / (1 - e)
-                error = np.clip(error, 0.0, 0.999)
-                odds = _running_mean(odds, error * n / (1.0 - error), share)
-        if beyond:  # the error model's prediction at the counts
-            predicted = float(1.0 - (odds / (odds + count)).mean()) if scorer.higher_is_better else float((noise / count**alpha).mean())
+                model.add(clock.scored(scorer, (probe / probe_spp).astype(np.float32)).map, probe_spp)
+                probe = None
+        if beyond:
+            predicted = model.predict(count)
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
@@ -607,7 +664,7 @@ def render_adaptive(
             probe = renderer(extra, seed=seed + calls)
             sums += probe
         else:
-            extra = allocate_samples(noise, count, int(round(step * count.size)), alpha, uniform_share, rng)
+            extra = allocate_samples(model.noise, count, int(round(step * count.size)), model.alpha, uniform_share, rng)
             sums += renderer(extra, seed=seed + calls)
         calls += 1
         count += extra

@@ -120,6 +120,41 @@ class SlowScorer(ReferenceScorer):
         return super().__call__(image, hdr=hdr)
 
 
+class RecordingScorer(ReferenceScorer):
+    """The oracle, keeping every image it is asked to rate."""
+
+    def __init__(self, reference):
+        super().__init__(reference)
+        self.images = []
+
+    def __call__(self, image, *, hdr=None):
+        self.images.append(np.array(image))
+        return super().__call__(image, hdr=hdr)
+
+
+def test_render_until_probes_beyond_the_scorers_range(scene, reference):
+    # Past map_spp a due scoring rates a fresh 4-spp step alone, not the image; the prediction is
+    # the error model's at the image's spp, every step, and it follows the true score.
+    scorer = RecordingScorer(reference)
+    image, log = render_until(scene, scorer, target_score=None, time_budget_s=60, spp_per_step=2, reference=reference,
+                              max_spp=40, max_overhead=None, map_spp=8, probe_spp=4, seed=3, warmup=False)
+    assert log[-1]["stop"] == "max_spp" and np.isfinite(image).all()
+    assert [r["spp"] for r in log] == [2, 4, 6, 8, 10, 14, 18, 22, 26, 30, 34, 38, 40]
+    assert all(r["scored"] for r in log[:-1]) and not log[-1]["scored"]  # the last step is cut to 2 spp: no probe
+    assert len(scorer.images) == len(log) - 1
+    for row, probe in zip(log[5:-1], scorer.images[5:]):
+        assert true_ssim(probe, reference) < row["true"] - 0.05  # the probe is noisier than the image
+        assert row["predicted"] != pytest.approx(true_ssim(probe, reference))
+    assert log[-1]["predicted"] == pytest.approx(log[-1]["true"], abs=0.1)
+    assert log[-1]["predicted"] > log[-2]["predicted"]  # the model's prediction moves with the samples
+    # Stopping on the model's prediction: the same run stops at the first row that reaches it.
+    target = log[8]["predicted"]
+    first = next(i for i, r in enumerate(log) if r["predicted"] >= target)
+    _, stopped = render_until(scene, RecordingScorer(reference), target_score=target, time_budget_s=60, spp_per_step=2,
+                              reference=reference, max_spp=40, max_overhead=None, map_spp=8, probe_spp=4, seed=3, warmup=False)
+    assert stopped[-1]["stop"] == "target" and len(stopped) == first + 1 and first >= 5
+
+
 def test_render_until_bounds_the_scorer_overhead(scene, reference):
     # A scorer that costs about as much as several render steps may only run now and then.
     slow = SlowScorer(reference, delay=0.02)
@@ -262,18 +297,6 @@ def test_render_adaptive_per_pixel(llvm_scene):
                                   max_overhead=None)
     np.testing.assert_array_equal(again, first)
     np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
-
-
-class RecordingScorer(ReferenceScorer):
-    """The oracle, keeping every image it is asked to rate."""
-
-    def __init__(self, reference):
-        super().__init__(reference)
-        self.images = []
-
-    def __call__(self, image, *, hdr=None):
-        self.images.append(np.array(image))
-        return super().__call__(image, hdr=hdr)
 
 
 def test_render_adaptive_probes_beyond_the_scorers_range(llvm_scene):
