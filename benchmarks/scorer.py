@@ -3,7 +3,8 @@
     python benchmarks/scorer.py --out reports/scorer [--size 512 --patch-size 128 --repeats 3]
                                 [--data data/default --val-scene cornell --checkpoint-dir DIR]
                                 [--scenes cornell,caustic,door --resolution 128 --budget 2 --render-repeats 3]
-                                [--range-spp 16,64,256] [--skip throughput,memory,accuracy,range,render]
+                                [--range-spp 16,64,256] [--stop-targets 0.95,0.98 --stop-max-spp 1024]
+                                [--skip throughput,memory,accuracy,range,stop,render]
 
 Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as PNGs beside it:
 
@@ -21,7 +22,11 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    score and map against the truth on uniform images, and the error of adaptive sampling (predicted
    and oracle map) over uniform's at equal mean spp (``render_adaptive`` with ``total_spp``). The
    shipped models learnt from at most 64 spp; this shows how far past that their maps still help.
-5. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
+5. **stop** -- on each render scene and ``--stop-targets``, without a clock: where early stopping
+   (``render_until``, scoring every step) stops, rating the image itself or, past 64 spp, probes,
+   against the samples uniform rendering needs for its true SSIM to reach the target; the true
+   SSIM at the stop shows premature stops.
+6. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
    reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
    (no scorer), early stopping at a predicted target, adaptive sampling per pixel, the same driven
    by the true SSIM map (an oracle: the headroom a perfect predictor would have), and adaptive
@@ -296,6 +301,40 @@ def scorer_range(args) -> str:
         ["scene", "spp", "true SSIM", "predicted", "map PCC", "adaptive / uniform", "oracle / uniform"], rows)
 
 
+def early_stop(args) -> str:
+    """Early stopping without a clock: where ``render_until`` stops for a target, rating the image
+    itself or, past 64 spp, probes, against the samples uniform rendering needs to reach it."""
+    from nriqa.render_loop import ensure_variant, render_until
+
+    ensure_variant(args.backend)
+    scorer, label = render_scorer(args)
+    forever = 1e9  # no time budget: the loops stop at the target or at --stop-max-spp
+    rows = []
+    seeds = list(range(1, args.render_repeats + 1))
+    for name in args.scenes.split(","):
+        scene, reference = bench_scene(name, args)
+        curves = [render_until(scene, None, None, forever, args.spp_per_step, reference, max_spp=args.stop_max_spp,
+                               seed=100 + seed)[1] for seed in seeds]
+        for target in args.stop_targets:
+            # Samples uniform rendering needs: the first step whose true SSIM reaches the target.
+            needed = [next((r["spp"] for r in log if r["true"] >= target), None) for log in curves]
+            needed_text = "/".join(f"{n:.0f}" if n is not None else f">{args.stop_max_spp}" for n in needed)
+            for method, map_spp in (("image", None), ("probes past 64 spp", 64)):
+                ends = [render_until(scene, scorer, target, forever, args.spp_per_step, reference, max_spp=args.stop_max_spp,
+                                     max_overhead=None, map_spp=map_spp, seed=seed)[1][-1] for seed in seeds]
+                reached = sum(e["true"] >= target for e in ends)
+                rows.append([name, target, needed_text, method, "/".join(f"{e['spp']:.0f}" for e in ends),
+                             f"{np.mean([e['predicted'] for e in ends]):.4f}", f"{np.mean([e['true'] for e in ends]):.4f}",
+                             f"{reached}/{len(ends)}", "/".join(sorted({e['stop'] for e in ends}))])
+    return (f"scorer: {label}; {args.resolution}x{args.resolution}; {len(seeds)} seeds; reference {args.reference_spp} spp; "
+            f"steps of {args.spp_per_step} spp growing to 25 % of those done, scoring every step, at most {args.stop_max_spp} spp. "
+            "'uniform needs': spp at which uniform rendering's true SSIM first reaches the target, per seed. 'image': the scorer "
+            "rates the image at every step; 'probes': past 64 spp it rates a fresh 32-spp step alone and the error model "
+            "predicts the image's score. 'true >= target': runs whose true SSIM at the stop reached the target (a stop "
+            "below it is premature).\n\n") + md_table(
+        ["scene", "target", "uniform needs (spp)", "scorer rates", "stopped at (spp)", "predicted", "true", "true >= target", "stop"], rows)
+
+
 def _at(log: list[dict], seconds: float) -> float:
     """True SSIM of the latest row at or before ``seconds`` (the image one would have had then)."""
     rows = [r for r in log if r["seconds"] <= seconds]
@@ -378,7 +417,7 @@ def render(args, out: Path) -> str:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("reports/scorer"))
-    ap.add_argument("--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,range,render")
+    ap.add_argument("--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,range,stop,render")
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--patch-size", type=int, default=128)
@@ -397,6 +436,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--render-repeats", type=int, default=3, help="seeds per render loop")
     ap.add_argument("--range-spp", type=lambda v: [int(x) for x in v.split(",")], default=[16, 64, 256],
                     help="range section: mean spp at which the scorer and adaptive sampling are measured")
+    ap.add_argument("--stop-targets", type=lambda v: [float(x) for x in v.split(",")], default=[0.95, 0.98],
+                    help="stop section: predicted SSIM targets of early stopping")
+    ap.add_argument("--stop-max-spp", type=int, default=1024, help="stop section: most spp of a run")
     ap.add_argument("--max-overhead", type=float, default=0.05, help="scorer time allowed, as a share of render time")
     ap.add_argument("--uniform-share", type=float, default=0.5, help="adaptive: share of each step spread evenly")
     ap.add_argument("--spp-per-step", type=int, default=4)
@@ -414,7 +456,7 @@ def main(argv: list[str] | None = None) -> None:
              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}\n"]
     sections = {"throughput": lambda: throughput(args), "memory": lambda: memory(args),
                 "accuracy": lambda: accuracy(args), "range": lambda: scorer_range(args),
-                "render": lambda: render(args, args.out)}
+                "stop": lambda: early_stop(args), "render": lambda: render(args, args.out)}
     for name, fn in sections.items():
         if name in skip:
             continue

@@ -28,6 +28,7 @@ def test_render_section_writes_every_method(tmp_path):
     try:
         load_benchmark().main(["--out", str(tmp_path), "--skip", "throughput,memory,accuracy", "--scenes", "cornell",
                                "--resolution", "32", "--budget", "0.3", "--reference-spp", "32", "--render-repeats", "2", "--range-spp", "4,8",
+                               "--stop-targets", "0.5", "--stop-max-spp", "16",
                                "--tile", "16", "--threads", "1"])
     finally:
         if previous is not None:
@@ -42,3 +43,7 @@ def test_render_section_writes_every_method(tmp_path):
     for spp in (4, 8):
         (row,) = [line for line in table.splitlines() if line.startswith(f"| cornell | {spp} |")]
         assert len(row.strip("|").split("|")) == 7
+    # the stop section: one row per scene, target and way of rating
+    for method in ("image", "probes past 64 spp"):
+        (row,) = [line for line in table.splitlines() if line.startswith("| cornell | 0.5 |") and f"| {method} |" in line]
+        assert len(row.strip("|").split("|")) == 9
