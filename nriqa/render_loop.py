@@ -244,6 +244,13 @@ def _check_growth(growth: float) -> None:
         raise ValueError(f"growth must be >= 0 (0: steps of spp_per_step throughout), got {growth}")
 
 
+def _check_probes(map_spp: float | None, probe_spp: int) -> None:
+    if map_spp is not None and not map_spp >= 0:
+        raise ValueError(f"map_spp must be >= 0 or None (the scorer always rates the image), got {map_spp}")
+    if not probe_spp >= 1:
+        raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
+
+
 def _next_step(done: float, spp_per_step: float, growth: float, clock: _Clock, time_budget_s: float | None,
                left_spp: float | None, pixels: int = 1) -> float:
     """Mean samples per pixel of a loop's next step.
@@ -375,8 +382,7 @@ def render_until(
     """
     _check_overhead(max_overhead)
     _check_growth(growth)
-    if not probe_spp >= 1:
-        raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
+    _check_probes(map_spp, probe_spp)
     loaded = _load(scene)
     pixels = int(np.prod(loaded.sensors()[0].film().crop_size()))
     setup = cost = 0.0
@@ -608,6 +614,7 @@ def render_adaptive(
         raise ValueError("render_adaptive needs a budget: total_spp, time_budget_s or both")
     _check_overhead(max_overhead)
     _check_growth(growth)
+    _check_probes(map_spp, probe_spp)
     if tile is None and not is_jit_variant():
         import mitsuba as mi
 
@@ -616,8 +623,6 @@ def render_adaptive(
     if tile is not None:
         return _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction,
                                max_overhead, reference, seed, warmup)
-    if not probe_spp >= 1:
-        raise ValueError(f"probe_spp must be >= 1, got {probe_spp}")
     renderer = PixelRenderer(_load(scene))
     height, width = renderer.height, renderer.width
     rng = np.random.default_rng(seed)

@@ -201,6 +201,16 @@ def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
         render_adaptive(mi.load_dict(scene), scorer, total_spp=4, tile=16)
 
 
+@pytest.mark.parametrize("bad, match", [({"probe_spp": 0}, "probe_spp"), ({"map_spp": -1}, "map_spp"),
+                                        ({"growth": -0.5}, "growth"), ({"max_overhead": 0}, "max_overhead")])
+def test_loops_refuse_bad_settings(scene, scorer, bad, match):
+    # render_adaptive checks every setting whatever its mode (tiles, as here in scalar_rgb, use no probes).
+    with pytest.raises(ValueError, match=match):
+        render_until(scene, scorer, 0.9, time_budget_s=1, warmup=False, **bad)
+    with pytest.raises(ValueError, match=match):
+        render_adaptive(scene, scorer, total_spp=8, warmup=False, **bad)
+
+
 def test_expected_gain_prefers_worse_and_less_sampled_tiles():
     tiles = [(0, 0, 2, 2), (2, 0, 2, 2), (4, 0, 2, 2)]
     qmap = np.array([[0.9, 0.9, 0.5, 0.5, 0.5, 0.5]] * 2)
