@@ -2,7 +2,8 @@
 
 * :func:`render_until` -- progressive rendering: passes of ``spp_per_step`` samples (growing with
   the image, ``growth``) with fresh seeds, averaged, until the predicted pooled quality reaches a
-  target or the time runs out.
+  target or the time runs out. Past the scorer's training range (``map_spp``) the prediction
+  comes from fresh low-spp probes and an error model, as below.
 * :func:`render_adaptive` -- after a uniform first pass, each step spends as many samples as a
   uniform step would, per pixel where the predicted map expects them to remove the most error
   (one wavefront through the scene's integrator: a custom sampling loop in Mitsuba's Python API,
