@@ -1,0 +1,84 @@
+"""Per-sample cost of adaptive sampling's renderer: ``mi.render`` against ``PixelRenderer``.
+
+    python benchmarks/pixel_renderer.py [--scenes cornell,caustic,glossy,textured] [--resolution 128] [--spp 64]
+
+Per scene (data_gen's variant 0, path tracing, llvm_ad_rgb), the same mean samples per pixel
+rendered three ways: ``mi.render`` (what uniform rendering uses), ``PixelRenderer`` with the same
+count in every pixel, and ``PixelRenderer`` with the counts an adaptive run ends with
+(``render_adaptive`` with the shipped ``fcnn_fast`` to ``--spp``, rescaled to that mean). Each is
+run once to compile, then ``--repeats`` times with fresh seeds, interleaved; the table gives the
+medians and their ratios to ``mi.render`` (measured in one run on one machine). Over 1, adaptive
+sampling reaches fewer samples than uniform in the same time: the first ratio is the renderer's
+own cost, the second adds where the samples go (noisy pixels tend to have long paths).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from nriqa.render_loop import PixelRenderer, _load, _render, ensure_variant, is_jit_variant, render_adaptive  # noqa: E402
+
+
+def scene_of(name: str, resolution: int) -> dict:
+    from data_gen.plan import ImageTask, Job
+    from data_gen.render import scene_dict
+    from data_gen.scenes import get_scene
+
+    spec = get_scene(name)
+    job = Job(name, 0, 1234, spec.reference_algorithm, (resolution, resolution), spec.max_depth, ())
+    return scene_dict(job, ImageTask("bench", "test", 4, 1, "b.exr", "r.exr"))
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", default="cornell,caustic,glossy,textured")
+    parser.add_argument("--resolution", type=int, default=128)
+    parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=None, help="Mitsuba threads (default: every core)")
+    args = parser.parse_args(argv)
+    import torch
+
+    from nriqa.scorer import Scorer
+
+    torch.set_num_threads(1)
+    variant = ensure_variant("auto", threads=args.threads)
+    if not is_jit_variant():
+        sys.exit(f"PixelRenderer needs llvm_ad_rgb; this machine runs {variant} (set DRJIT_LIBLLVM_PATH to LLVM 19)")
+    scorer = Scorer.from_pretrained("fcnn_fast")
+    print(f"{variant}; {args.resolution}x{args.resolution}; {args.spp} spp mean; median of {args.repeats}")
+    print("| scene | mi.render (s) | PixelRenderer, uniform (s) | ratio | PixelRenderer, adaptive counts (s) | ratio | counts min / max |")
+    print("|---|---:|---:|---:|---:|---:|---|")
+    for name in args.scenes.split(","):
+        scene = scene_of(name, args.resolution)
+        loaded = _load(scene)
+        renderer = PixelRenderer(loaded)
+        _, log = render_adaptive(scene, scorer, total_spp=args.spp, max_overhead=None, seed=5)
+        adaptive = np.round(log[-1]["spp_map"] * args.spp / log[-1]["spp_map"].mean()).astype(np.int64)
+        uniform = np.full_like(adaptive, args.spp)
+        ways = {"mi.render": lambda seed: _render(loaded, args.spp, seed),
+                "uniform": lambda seed: renderer(uniform, seed),
+                "adaptive": lambda seed: renderer(adaptive, seed)}
+        times: dict[str, list[float]] = {way: [] for way in ways}
+        for way, fn in ways.items():
+            fn(1)  # compile
+        for rep in range(args.repeats):
+            for way, fn in ways.items():
+                start = time.perf_counter()
+                fn(10 + rep)
+                times[way].append(time.perf_counter() - start)
+        med = {way: statistics.median(t) for way, t in times.items()}
+        print(f"| {name} | {med['mi.render']:.3f} | {med['uniform']:.3f} | {med['uniform'] / med['mi.render']:.2f} | "
+              f"{med['adaptive']:.3f} | {med['adaptive'] / med['mi.render']:.2f} | {adaptive.min()} / {adaptive.max()} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,33 @@
+"""benchmarks/pixel_renderer.py runs end to end and prints its table (tiny, llvm_ad_rgb)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+mi = pytest.importorskip("mitsuba")
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.usefixtures("one_thread")
+def test_pixel_renderer_benchmark_prints_both_ratios(capsys):
+    from data_gen.backend import LLVM_VARIANT, SCALAR_VARIANT, init_worker, probe_llvm
+
+    ok, reason = probe_llvm()
+    if not ok:
+        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
+    spec = importlib.util.spec_from_file_location("bench_pixel_renderer", REPO / "benchmarks" / "pixel_renderer.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    previous = mi.variant()
+    init_worker(LLVM_VARIANT, 1)
+    try:
+        module.main(["--scenes", "cornell", "--resolution", "32", "--spp", "8", "--repeats", "1"])
+    finally:
+        mi.set_variant(previous or SCALAR_VARIANT)
+    (row,) = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| cornell |")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert len(cells) == 7 and all(float(cells[i]) > 0 for i in (1, 2, 3, 4, 5))
