@@ -17,6 +17,7 @@ from nriqa.render_loop import (  # noqa: E402
     PixelRenderer,
     ReferenceScorer,
     _Clock,
+    _ErrorModel,
     _expected_gain,
     _next_step,
     allocate_samples,
@@ -209,6 +210,25 @@ def test_loops_refuse_bad_settings(scene, scorer, bad, match):
         render_until(scene, scorer, 0.9, time_budget_s=1, warmup=False, **bad)
     with pytest.raises(ValueError, match=match):
         render_adaptive(scene, scorer, total_spp=8, warmup=False, **bad)
+
+
+def test_error_model_predicts_the_saturating_ssim_and_the_mae():
+    # SSIM: a map of 0.5 at 10 spp gives odds b = 10, so at 30 spp 1 - 10/40 = 0.75; maps are
+    # averaged weighted by their samples (a second map at 30 spp saying 0.75 agrees).
+    model = _ErrorModel(higher_is_better=True)
+    model.add(np.full((4, 4), 0.5), 10)
+    assert model.predict(30) == pytest.approx(0.75) and model.predict(np.full((4, 4), 10.0)) == pytest.approx(0.5)
+    model.add(np.full((4, 4), 0.75), 30)
+    assert model.predict(30) == pytest.approx(0.75)
+    # Extremes stay finite: a perfect pixel, a hopeless one (clipped to 0.999), NaN (the worst seen).
+    model = _ErrorModel(higher_is_better=True)
+    model.add(np.array([[1.0, 0.0], [np.nan, 0.9]]), np.array([[4.0, 4.0], [4.0, 4.0]]))
+    assert np.isfinite(model.odds).all() and model.odds[0, 0] == 0.0
+    assert 0.0 <= model.predict(1e6) <= 1.0 and model.predict(1e6) > model.predict(4.0)
+    # MAE: a / sqrt(n) with a = e sqrt(n).
+    model = _ErrorModel(higher_is_better=False)
+    model.add(np.full((2, 2), 0.2), 16)
+    assert model.predict(64) == pytest.approx(0.1) and model.odds is None
 
 
 def test_expected_gain_prefers_worse_and_less_sampled_tiles():
