@@ -1,10 +1,11 @@
-"""The weights shipped in the package: they load (checksum, weights_only) and fcnn_fast ranks renders."""
+"""The weights shipped in the package: they load (checksum, weights_only) and rank renders."""
 
 from __future__ import annotations
 
 import json
 
 import numpy as np
+import pytest
 import torch
 
 from nriqa.correlation import srocc
@@ -23,14 +24,17 @@ def test_shipped_models_load_with_their_cards():
         assert np.isfinite(result.map).all() and np.isfinite(result.score)
 
 
-def test_shipped_fcnn_fast_ranks_the_tiny_renders(tiny):
+# Image SROCC measured with the shipped weights: fcnn_fast 0.965 (4000 CPU steps on the default
+# set), fcnn 0.892 (800 CPU steps); the bounds leave room for other CPUs' rounding.
+@pytest.mark.parametrize("name, bound", [("fcnn_fast", 0.85), ("fcnn", 0.8)])
+def test_shipped_models_rank_the_tiny_renders(tiny, name, bound):
     """Predicted pooled SSIM against the true mean SSIM over the tiny preset's test images (2-16 spp)."""
     from nriqa.data.images import load_ldr
     from nriqa.manifest import read_manifest
     from nriqa.ssim import ssim_map
 
     records, _ = read_manifest(tiny)
-    scorer = Scorer.from_pretrained("fcnn_fast")
+    scorer = Scorer.from_pretrained(name)
     predicted, true = [], []
     for r in records:
         if r.role != "test":
@@ -39,5 +43,4 @@ def test_shipped_fcnn_fast_ranks_the_tiny_renders(tiny):
         true.append(float(ssim_map(x, y).mean()))
         predicted.append(scorer(x[0].permute(1, 2, 0).numpy(), hdr=False).score)
     assert len(true) >= 64
-    # Measured 0.965 with the shipped weights (4000 CPU steps on the default set).
-    assert float(srocc(torch.tensor(predicted), torch.tensor(true))) > 0.85
+    assert float(srocc(torch.tensor(predicted), torch.tensor(true))) > bound
