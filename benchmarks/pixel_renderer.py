@@ -24,17 +24,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from data_gen.render import loop_scene  # noqa: E402
 from nriqa.render_loop import PixelRenderer, _load, _render, ensure_variant, is_jit_variant, render_adaptive  # noqa: E402
-
-
-def scene_of(name: str, resolution: int) -> dict:
-    from data_gen.plan import ImageTask, Job
-    from data_gen.render import scene_dict
-    from data_gen.scenes import get_scene
-
-    spec = get_scene(name)
-    job = Job(name, 0, 1234, spec.reference_algorithm, (resolution, resolution), spec.max_depth, ())
-    return scene_dict(job, ImageTask("bench", "test", 4, 1, "b.exr", "r.exr"))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -58,7 +49,7 @@ def main(argv: list[str] | None = None) -> None:
     print("| scene | mi.render (s) | PixelRenderer, uniform (s) | ratio | PixelRenderer, adaptive counts (s) | ratio | counts min / max |")
     print("|---|---:|---:|---:|---:|---:|---|")
     for name in args.scenes.split(","):
-        scene = scene_of(name, args.resolution)
+        scene = loop_scene(name, (args.resolution, args.resolution))
         loaded = _load(scene)
         renderer = PixelRenderer(loaded)
         _, log = render_adaptive(scene, scorer, total_spp=args.spp, max_overhead=None, seed=5)

@@ -247,13 +247,9 @@ def bench_scene(name: str, args) -> tuple[dict, np.ndarray]:
     if key not in _SCENES:
         import mitsuba as mi
 
-        from data_gen.plan import ImageTask, Job
-        from data_gen.render import scene_dict
-        from data_gen.scenes import get_scene
+        from data_gen.render import loop_scene
 
-        spec = get_scene(name)
-        job = Job(name, 0, 1234, spec.reference_algorithm, (args.resolution, args.resolution), spec.max_depth, ())
-        scene = scene_dict(job, ImageTask("bench", "test", args.spp_per_step, 1, "b.exr", "r.exr"))
+        scene = loop_scene(name, (args.resolution, args.resolution), spp=args.spp_per_step)
         t0 = time.perf_counter()
         reference = np.array(mi.render(mi.load_dict(scene), spp=args.reference_spp, seed=987654), dtype=np.float32)[..., :3]
         print(f"  {name}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s", file=sys.stderr)

@@ -67,6 +67,15 @@ def scene_dict(job: Job, task: ImageTask) -> dict:
     return scene
 
 
+def loop_scene(scene: str, resolution: tuple[int, int], variant_seed: int = 1234, spp: int = 4) -> dict:
+    """A scene of the catalogue as a dict for ``nriqa.render_loop`` and the benchmarks: the variant
+    of ``variant_seed``, rendered by the scene's reference algorithm at its max depth into a
+    box-filtered film of ``resolution``; ``spp`` sets the sampler's count (the loops pass their own)."""
+    spec = get_scene(scene)
+    job = Job(scene, 0, variant_seed, spec.reference_algorithm, tuple(resolution), spec.max_depth, ())
+    return scene_dict(job, ImageTask("loop", "test", spp, 1, "loop.exr", "reference.exr"))
+
+
 def sanitize(image: np.ndarray) -> tuple[np.ndarray, int]:
     """Replace NaN/Inf samples by 0; return the image and how many pixels had any."""
     bad = ~np.isfinite(image)

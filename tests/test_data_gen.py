@@ -305,3 +305,19 @@ def test_default_preset_scene_converges_at_full_size(tmp_path, scene):
     verdicts = dataset_verdicts(tmp_path, records)
     assert {v["algorithm"] for v in verdicts} == set(get_scene(scene).algorithms)
     assert all(v["converged"] for v in verdicts), verdicts
+
+
+def test_loop_scene_is_the_reference_setup_at_any_resolution():
+    mi = pytest.importorskip("mitsuba")
+    from data_gen.backend import SCALAR_VARIANT
+    from data_gen.render import loop_scene
+    from data_gen.scenes import get_scene
+
+    if mi.variant() is None:  # scenes are built with Mitsuba's transforms
+        mi.set_variant(SCALAR_VARIANT)
+    scene = loop_scene("medium", (24, 16), spp=8)
+    film = scene["sensor"]["film"]
+    assert (film["width"], film["height"]) == (24, 16) and film["rfilter"] == {"type": "box"}
+    assert scene["integrator"]["max_depth"] == get_scene("medium").max_depth
+    assert scene["integrator"]["type"] == "volpath"  # the fog scene's reference integrator
+    assert loop_scene("medium", (24, 16), spp=8) == scene  # the same variant every time
