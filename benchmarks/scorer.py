@@ -299,12 +299,13 @@ def scorer_range(args) -> str:
 
 def early_stop(args) -> str:
     """Early stopping without a clock: where ``render_until`` stops for a target, rating the image
-    itself or, past 64 spp, probes, against the samples uniform rendering needs to reach it."""
+    itself or, past its ``map_spp``, probes, against the samples uniform rendering needs to reach it."""
     from nriqa.render_loop import ensure_variant, render_until
 
     ensure_variant(args.backend)
     scorer, label = render_scorer(args)
     forever = 1e9  # no time budget: the loops stop at the target or at --stop-max-spp
+    defaults = {k: p.default for k, p in inspect.signature(render_until).parameters.items()}
     rows = []
     seeds = list(range(1, args.render_repeats + 1))
     for name in args.scenes.split(","):
@@ -315,7 +316,7 @@ def early_stop(args) -> str:
             # Samples uniform rendering needs: the first step whose true SSIM reaches the target.
             needed = [next((r["spp"] for r in log if r["true"] >= target), None) for log in curves]
             needed_text = "/".join(f"{n:.0f}" if n is not None else f">{args.stop_max_spp}" for n in needed)
-            for method, map_spp in (("image", None), ("probes past 64 spp", 64)):
+            for method, map_spp in (("image", None), (f"probes past {defaults['map_spp']} spp", defaults["map_spp"])):
                 ends = [render_until(scene, scorer, target, forever, args.spp_per_step, reference, max_spp=args.stop_max_spp,
                                      max_overhead=None, map_spp=map_spp, seed=seed)[1][-1] for seed in seeds]
                 reached = sum(e["true"] >= target for e in ends)
@@ -323,11 +324,12 @@ def early_stop(args) -> str:
                              f"{np.mean([e['predicted'] for e in ends]):.4f}", f"{np.mean([e['true'] for e in ends]):.4f}",
                              f"{reached}/{len(ends)}", "/".join(sorted({e['stop'] for e in ends}))])
     return (f"scorer: {label}; {args.resolution}x{args.resolution}; {len(seeds)} seeds; reference {args.reference_spp} spp; "
-            f"steps of {args.spp_per_step} spp growing to 25 % of those done, scoring every step, at most {args.stop_max_spp} spp. "
+            f"steps of {args.spp_per_step} spp growing to {defaults['growth']:.0%} of those done, scoring every step, "
+            f"at most {args.stop_max_spp} spp. "
             "'uniform needs': spp at which uniform rendering's true SSIM first reaches the target, per seed. 'image': the scorer "
-            "rates the image at every step; 'probes': past 64 spp it rates a fresh 32-spp step alone and the error model "
-            "predicts the image's score. 'true >= target': runs whose true SSIM at the stop reached the target (a stop "
-            "below it is premature).\n\n") + md_table(
+            f"rates the image at every step; 'probes': past {defaults['map_spp']} spp it rates a fresh {defaults['probe_spp']}-spp "
+            "step alone and the error model predicts the image's score. 'true >= target': runs whose true SSIM at the stop "
+            "reached the target (a stop below it is premature).\n\n") + md_table(
         ["scene", "target", "uniform needs (spp)", "scorer rates", "stopped at (spp)", "predicted", "true", "true >= target", "stop"], rows)
 
 
