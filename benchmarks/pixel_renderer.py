@@ -2,14 +2,15 @@
 
     python benchmarks/pixel_renderer.py [--scenes cornell,caustic,glossy,textured] [--resolution 128] [--spp 64]
 
-Per scene (data_gen's variant 0, path tracing, llvm_ad_rgb), the same mean samples per pixel
-rendered three ways: ``mi.render`` (what uniform rendering uses), ``PixelRenderer`` with the same
-count in every pixel, and ``PixelRenderer`` with the counts an adaptive run ends with
-(``render_adaptive`` with the shipped ``fcnn_fast`` to ``--spp``, rescaled to that mean). Each is
-run once to compile, then ``--repeats`` times with fresh seeds, interleaved; the table gives the
-medians and their ratios to ``mi.render`` (measured in one run on one machine). Over 1, adaptive
-sampling reaches fewer samples than uniform in the same time: the first ratio is the renderer's
-own cost, the second adds where the samples go (noisy pixels tend to have long paths).
+Per scene (``data_gen.render.loop_scene``: one fixed variant, the scene's reference algorithm;
+llvm_ad_rgb), the same mean samples per pixel rendered three ways: ``mi.render`` (what uniform
+rendering uses), ``PixelRenderer`` with the same count in every pixel, and ``PixelRenderer`` with
+the counts an adaptive run ends with (``render_adaptive`` with the shipped ``fcnn_fast`` to
+``--spp``, rescaled to that mean). Each is run once to compile, then ``--repeats`` times with fresh
+seeds, interleaved; the table gives the medians and their ratios to ``mi.render`` (measured in one
+run on one machine). Over 1, adaptive sampling reaches fewer samples than uniform in the same
+time: the first ratio is the renderer's own cost, the second adds where the samples go (noisy
+pixels tend to have long paths).
 """
 
 from __future__ import annotations

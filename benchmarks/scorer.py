@@ -237,12 +237,18 @@ def render_scorer(args) -> tuple[Scorer, str]:
     return Scorer(create_model("fcnn_fast")), "UNTRAINED fcnn_fast (timings only; early stopping and tile choice are meaningless)"
 
 
+def defaults_of(fn) -> dict:
+    """A loop's keyword defaults, which the sections run with: their notes quote these, so they cannot drift."""
+    return {k: p.default for k, p in inspect.signature(fn).parameters.items()}
+
+
 _SCENES: dict[tuple, tuple[dict, np.ndarray]] = {}
 
 
 def bench_scene(name: str, args) -> tuple[dict, np.ndarray]:
-    """A data_gen scene (variant 0, path tracing) as a dict at ``--resolution``, and its reference
-    at ``--reference-spp``; rendered once per run, shared by the sections."""
+    """A data_gen scene (``loop_scene``: one fixed variant, the scene's reference algorithm) as a
+    dict at ``--resolution``, and its reference at ``--reference-spp``; rendered once per run,
+    shared by the sections."""
     key = (name, args.resolution, args.reference_spp, args.spp_per_step)
     if key not in _SCENES:
         import mitsuba as mi
@@ -288,7 +294,7 @@ def scorer_range(args) -> str:
             uniform = np.array(runs["uniform"])
             ratio = {m: float(np.mean(np.array(v) / uniform)) for m, v in runs.items()}
             rows.append([name, spp, f"{true:.4f}", f"{pred:.4f}", f"{pixel:.3f}", f"{ratio['predicted']:.3f}", f"{ratio['oracle']:.3f}"])
-    default = {k: p.default for k, p in inspect.signature(render_adaptive).parameters.items()}
+    default = defaults_of(render_adaptive)
     return (f"scorer: {label}; {args.resolution}x{args.resolution}; {len(seeds)} seeds; reference {args.reference_spp} spp. "
             "'true' / 'predicted': mean SSIM of a uniform image at that spp and the scorer's pooled score of it; "
             "'map PCC': pixel PCC of its map against the true SSIM map. Error ratios: (1 - SSIM) of adaptive sampling "
@@ -305,7 +311,7 @@ def early_stop(args) -> str:
     ensure_variant(args.backend)
     scorer, label = render_scorer(args)
     forever = 1e9  # no time budget: the loops stop at the target or at --stop-max-spp
-    defaults = {k: p.default for k, p in inspect.signature(render_until).parameters.items()}
+    defaults = defaults_of(render_until)
     rows = []
     seeds = list(range(1, args.render_repeats + 1))
     for name in args.scenes.split(","):
@@ -400,7 +406,7 @@ def render(args, out: Path) -> str:
     plt.close(fig)
     mode = "per pixel" if is_jit_variant() else "per 16px tile (scalar variant)"
     # The loops' own defaults, which the runs above use: the note cannot drift from them.
-    default = {k: p.default for k, p in inspect.signature(render_adaptive).parameters.items()}
+    default = defaults_of(render_adaptive)
     note = (f"Mitsuba variant {variant}; scorer: {label}; {args.resolution}x{args.resolution}; first step {args.spp_per_step} spp, steps "
             f"growing to {default['growth']:.0%} of the samples done (adaptive: the same samples per step on average, {mode}, "
             f"uniform share {args.uniform_share}, {default['probe_spp']}-spp probes past {default['map_spp']} spp); time budget "
