@@ -660,10 +660,11 @@ def render_adaptive(
         row = clock.row(mean, count, predicted, scored)
         if _budget_spent(row, count, total_spp, time_budget_s):
             return mean, clock.log
-        step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s,
-                          None if total_spp is None else total_spp - count.mean(), count.size)
+        left = None if total_spp is None else total_spp - count.mean()
+        step = _next_step(count.mean(), spp_per_step, growth, clock, time_budget_s, left, count.size)
         t0 = time.perf_counter()
-        if beyond and clock.score_due() and not scored and step >= probe_spp:
+        # As in render_until: a probe whenever the budget has room for one, however small the grown step.
+        if beyond and clock.score_due() and not scored and _next_step(count.mean(), probe_spp, 0.0, clock, time_budget_s, left, count.size) >= probe_spp:
             # A map is due past the scorer's range: this step is a fresh uniform probe (never two in a
             # row), scored alone next, and folded into the image like any other samples.
             extra = np.full((height, width), probe_spp)

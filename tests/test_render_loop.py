@@ -350,3 +350,16 @@ def test_render_adaptive_probes_beyond_the_scorers_range(llvm_scene):
     # Probes are uniform and count like any samples; the model's prediction tracks the true score.
     assert counts.min() >= 4 + 4 * probes and log[-1]["spp"] == pytest.approx(counts.mean())
     assert log[-1]["predicted"] == pytest.approx(log[-1]["true"], abs=0.1)
+
+
+def test_render_adaptive_takes_a_probe_larger_than_its_grown_steps(llvm_scene):
+    # Steps of 2-3 spp past map_spp=8: a due map still comes from a full 8-spp probe, as in render_until.
+    scene, reference = llvm_scene
+    scorer = RecordingScorer(reference)
+    _, log = render_adaptive(scene, scorer, total_spp=24, initial_spp=4, spp_per_step=2, map_spp=8, probe_spp=8,
+                             max_overhead=None, reference=reference, seed=4, warmup=False)
+    first = next(i for i, r in enumerate(log) if r["spp"] > 8)
+    assert not log[first]["scored"]  # the step that passes map_spp is not rated itself
+    probe = log[first + 1]
+    assert probe["scored"] and probe["spp"] - log[first]["spp"] == pytest.approx(8)
+    assert true_ssim(scorer.images[-1], reference) < probe["true"] - 0.05  # the scorer rated the probe, not the image
