@@ -280,7 +280,8 @@ def scorer_range(args) -> str:
             runs = {"uniform": [], "predicted": [], "oracle": []}
             maps = []
             for seed in seeds:
-                for method, (by, share) in {"uniform": (scorer, 1.0), "predicted": (scorer, args.uniform_share),
+                # Uniform counts do not depend on the map: the cheap true map stands in for the scorer there.
+                for method, (by, share) in {"uniform": (oracle, 1.0), "predicted": (scorer, args.uniform_share),
                                             "oracle": (oracle, args.uniform_share)}.items():
                     image, log = render_adaptive(scene, by, total_spp=spp, initial_spp=args.spp_per_step,
                                                  spp_per_step=args.spp_per_step, uniform_share=share, max_overhead=None,
