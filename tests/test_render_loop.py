@@ -311,6 +311,18 @@ def test_pixel_renderer_matches_mi_render_and_is_deterministic(llvm_scene):
         PixelRenderer(mi.load_dict({**scene, "integrator": {"type": "ptracer", "max_depth": 6}}))
 
 
+def test_frozen_pixel_renderer_gives_the_traced_sums(llvm_scene):
+    # The frozen kernel replays for new seeds and wavefront sizes, bit for bit what tracing every call gives.
+    scene, _ = llvm_scene
+    loaded = mi.load_dict(scene)
+    frozen, traced = PixelRenderer(loaded), PixelRenderer(loaded, freeze=False)
+    rng = np.random.default_rng(0)
+    for k in range(6):
+        counts = rng.integers(0, 3 + 2 * k, size=(SIZE, SIZE))
+        np.testing.assert_array_equal(frozen(counts, seed=k), traced(counts, seed=k))
+    assert 1 <= frozen._samples.n_recordings <= 3  # replayed, not traced again on every call
+
+
 def test_render_adaptive_per_pixel(llvm_scene):
     scene, reference = llvm_scene
     oracle = ReferenceScorer(reference)
