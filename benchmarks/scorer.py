@@ -26,14 +26,15 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    (``render_until``, scoring every step) stops, rating the image itself or, past 64 spp, probes,
    against the samples uniform rendering needs for its true SSIM to reach the target; the true
    SSIM at the stop shows premature stops.
-6. **render** -- on each scene (data_gen scene dicts, path tracing, ``resolution`` square,
-   reference at ``reference-spp``): true SSIM against wall time for uniform progressive rendering
-   (no scorer), early stopping at a predicted target, adaptive sampling per pixel, the same driven
+6. **render** -- on each scene (``data_gen.render.loop_scene``: the scene's reference algorithm,
+   ``resolution`` square, reference at ``reference-spp``): true SSIM against wall time for uniform
+   progressive rendering (no scorer; ``mi.render``, and in JIT variants also uniform counts through
+   the per-pixel renderer, the control for what sample placement alone gains), early stopping at a predicted target, adaptive sampling per pixel, the same driven
    by the true SSIM map (an oracle: the headroom a perfect predictor would have), and adaptive
    sampling per tile (``--tile``); ``--render-repeats`` seeds each. Scoring is cadenced to stay
    within ``--max-overhead`` of the render time; adaptive steps spend as many samples as uniform
    ones on average. The table gives each method's error ratio to uniform at equal time and the
-   scorer's share of the time. Scorer: ``--render-checkpoint``, else the shipped ``fcnn_fast``,
+   scorer's share of the time; ``per pixel``, the ratio to the per-pixel uniform control. Scorer: ``--render-checkpoint``, else the shipped ``fcnn_fast``,
    else an untrained ``fcnn_fast`` (then only the timings mean anything, and the table says so).
 
 Run with ``--threads 1`` on a small shared CPU: at these image sizes one torch thread is much
@@ -372,6 +373,9 @@ def render(args, out: Path) -> str:
             "adaptive": lambda seed: render_adaptive(scene, scorer, uniform_share=args.uniform_share, seed=seed, **common),
             "adaptive (oracle map)": lambda seed: render_adaptive(scene, oracle, uniform_share=args.uniform_share, seed=seed, **common),
         }
+        if is_jit_variant():  # the control: uniform counts through adaptive sampling's own renderer and steps
+            methods = {"uniform": methods["uniform"],
+                       "uniform (per pixel)": lambda seed: render_adaptive(scene, None, seed=seed, **common), **methods}
         if args.tile:
             methods[f"adaptive ({args.tile}px tiles)"] = lambda seed: render_adaptive(scene, scorer, tile=args.tile,
                                                                                      fraction=args.fraction, seed=seed, **common)
@@ -380,18 +384,21 @@ def render(args, out: Path) -> str:
             for m, fn in methods.items():
                 logs[m].append(fn(seed)[1])
         uniform_final = [log[-1]["true"] for log in logs["uniform"]]
+        pixel_final = [log[-1]["true"] for log in logs.get("uniform (per pixel)", [])]
         for method, runs in logs.items():
             finals = [log[-1] for log in runs]
             true = np.array([r["true"] for r in finals])
             half = np.array([_at(log, args.budget / 2) for log in runs])
             # Error ratio against uniform at the same time, per seed: < 1 means better than uniform.
             ratio = np.array([(1 - t) / (1 - u) for t, u in zip(true, uniform_final)])
+            # ... and against uniform counts through the per-pixel renderer: what the placement alone gains.
+            ratio_pixel = np.array([(1 - t) / (1 - u) for t, u in zip(true, pixel_final)])
             share = np.mean([r["score_seconds"] / r["seconds"] if r["seconds"] else 0.0 for r in finals])
             preds = [r["predicted"] for r in finals if r["predicted"] is not None]
             stops = sorted({r["stop"] for r in finals})
             rows.append([name, method, f"{np.mean([r['seconds'] for r in finals]):.2f}", f"{np.mean([r['spp'] for r in finals]):.0f}",
                          f"{half.mean():.4f}", f"{true.mean():.4f} ± {true.std():.4f}", f"{ratio.mean():.3f}",
-                         f"{np.mean(preds):.3f}" if preds else "-", f"{100 * share:.1f} %",
+                         f"{ratio_pixel.mean():.3f}" if pixel_final else "-", f"{np.mean(preds):.3f}" if preds else "-", f"{100 * share:.1f} %",
                          f"{np.mean([r['setup_seconds'] for r in finals]):.1f}", "/".join(stops)])
             log = runs[0]
             ax.plot([r["seconds"] for r in log], [1 - r["true"] for r in log], label=method)
@@ -413,10 +420,12 @@ def render(args, out: Path) -> str:
             f"uniform share {args.uniform_share}, {default['probe_spp']}-spp probes past {default['map_spp']} spp); time budget "
             f"{args.budget} s; scoring only while within {args.max_overhead} of render time; early-stop target {args.target}; "
             f"reference {args.reference_spp} spp; {len(seeds)} seeds per method, mean (± std). 'error ratio' is "
-            "(1 - SSIM) over uniform's at the end of the budget, per seed, averaged (< 1: better than uniform at equal time). "
+            "(1 - SSIM) over uniform's at the end of the budget, per seed, averaged (< 1: better than uniform at equal time); "
+            "'per pixel' is the same over 'uniform (per pixel)', uniform counts through the adaptive loop's renderer "
+            "(PixelRenderer, a frozen kernel; uniform uses mi.render, which traces the integrator on every call). "
             "'setup' is the untimed JIT warm-up. Plot (first seed): render_loops.png\n\n")
     return note + md_table(["scene", "method", "seconds", "mean spp", "true SSIM at half", "true SSIM", "error ratio",
-                            "predicted", "scorer share", "setup (s)", "stop"], rows)
+                            "per pixel", "predicted", "scorer share", "setup (s)", "stop"], rows)
 
 
 def main(argv: list[str] | None = None) -> None:

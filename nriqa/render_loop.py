@@ -554,7 +554,7 @@ def _budget_spent(row: dict, count: np.ndarray, total_spp: float | None, time_bu
 
 def render_adaptive(
     scene,
-    scorer: Scorer,
+    scorer: Scorer | None,
     total_spp: float | None = None,
     time_budget_s: float | None = None,
     *,
@@ -608,7 +608,9 @@ def render_adaptive(
     Args:
         scene: a Mitsuba scene dict with ``sensor.film`` (box filter) and sampler; per pixel also a
             loaded ``mi.Scene``, per tile a dict only (a cropped sensor per tile is added to it).
-        scorer: the :class:`~nriqa.scorer.Scorer` whose map places the samples.
+        scorer: the :class:`~nriqa.scorer.Scorer` whose map places the samples. ``None`` (per
+            pixel only): every step spread evenly and nothing scored, i.e. uniform progressive
+            rendering through the same renderer and steps, the control for what placement gains.
         total_spp: budget in mean samples per pixel.
         time_budget_s: budget in seconds (render + scoring).
         initial_spp: samples per pixel of the uniform first pass.
@@ -641,6 +643,8 @@ def render_adaptive(
         log.warning("per-pixel adaptive sampling needs a JIT variant (llvm_ad_rgb), not %s: using 16x16 tiles", mi.variant())
         tile = 16
     if tile is not None:
+        if scorer is None:
+            raise ValueError("render_adaptive per tile needs a scorer (scorer=None is uniform rendering per pixel)")
         return _adaptive_tiles(scene, scorer, total_spp, time_budget_s, initial_spp, spp_per_step, tile, fraction,
                                max_overhead, reference, seed, warmup)
     renderer = PixelRenderer(_load(scene))
@@ -651,7 +655,8 @@ def render_adaptive(
         t0 = time.perf_counter()
         sums = renderer(np.full((height, width), initial_spp), seed=2**31 - 1)
         renderer(np.full((height, width), spp_per_step), seed=2**31 - 2)
-        cost = _timed_score(scorer, (sums / initial_spp).astype(np.float32))[1]
+        if scorer is not None:
+            cost = _timed_score(scorer, (sums / initial_spp).astype(np.float32))[1]
         setup = time.perf_counter() - t0
     clock = _Clock(reference, setup, cost, max_overhead)
 
@@ -661,11 +666,14 @@ def render_adaptive(
     mean = (sums / count[..., None]).astype(np.float32)
     clock.render += time.perf_counter() - t0
     calls = 1
-    model = _ErrorModel(scorer.higher_is_better)
+    model = _ErrorModel(scorer.higher_is_better if scorer is not None else True)
+    if scorer is None:  # uniform: the same error everywhere, never scored; steps fill the pixels below the mean first
+        model.add(np.zeros((height, width)), count.copy())
+        uniform_share = 0.0
     predicted = probe = None
     while True:
-        beyond = map_spp is not None and float(count.mean()) > map_spp  # past the scorer's range
-        scored = model.noise is None or probe is not None or (clock.score_due() and not beyond)
+        beyond = scorer is not None and map_spp is not None and float(count.mean()) > map_spp  # past the scorer's range
+        scored = scorer is not None and (model.noise is None or probe is not None or (clock.score_due() and not beyond))
         if scored:
             if probe is None:  # the image itself is in the scorer's range
                 result = clock.scored(scorer, mean)

@@ -341,6 +341,18 @@ def test_render_adaptive_per_pixel(llvm_scene):
     np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
 
 
+def test_render_adaptive_without_a_scorer_renders_uniformly(llvm_scene):
+    scene, reference = llvm_scene
+    image, log = render_adaptive(scene, None, total_spp=40, initial_spp=4, spp_per_step=4, reference=reference, seed=3)
+    counts = log[-1]["spp_map"]
+    assert log[-1]["stop"] == "spp" and counts.mean() >= 40 and np.isfinite(image).all()
+    assert counts.max() - counts.min() <= 1  # grown steps are fractional: systematic rounding, at most one apart
+    assert all(r["predicted"] is None and not r["scored"] and r["score_seconds"] == 0 for r in log)
+    assert log[-1]["true"] > log[0]["true"]
+    with pytest.raises(ValueError, match="needs a scorer"):
+        render_adaptive(scene, None, total_spp=8, tile=8)
+
+
 def test_render_adaptive_probes_beyond_the_scorers_range(llvm_scene):
     scene, reference = llvm_scene
     scorer = RecordingScorer(reference)
