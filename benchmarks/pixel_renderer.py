@@ -3,14 +3,16 @@
     python benchmarks/pixel_renderer.py [--scenes cornell,caustic,glossy,textured] [--resolution 128] [--spp 64]
 
 Per scene (``data_gen.render.loop_scene``: one fixed variant, the scene's reference algorithm;
-llvm_ad_rgb), the same mean samples per pixel rendered three ways: ``mi.render`` (what uniform
-rendering uses), ``PixelRenderer`` with the same count in every pixel, and ``PixelRenderer`` with
+llvm_ad_rgb), the same mean samples per pixel rendered four ways: ``mi.render`` (what uniform
+rendering uses), ``PixelRenderer`` with the same count in every pixel (traced on every call as
+``mi.render`` is, ``freeze=False``, and frozen, the default), and ``PixelRenderer`` with
 the counts an adaptive run ends with (``render_adaptive`` with the shipped ``fcnn_fast`` to
 ``--spp``, rescaled to that mean). Each is run once to compile, then ``--repeats`` times with fresh
 seeds, interleaved; the table gives the medians and their ratios to ``mi.render`` (measured in one
 run on one machine). Over 1, adaptive sampling reaches fewer samples than uniform in the same
-time: the first ratio is the renderer's own cost, the second adds where the samples go (noisy
-pixels tend to have long paths).
+time: the first two ratios are the renderer's own cost (traced on every call, then frozen: the
+difference is the tracing, which matters most for small steps, e.g. ``--spp 4``), the last adds
+where the samples go (noisy pixels tend to have long paths).
 """
 
 from __future__ import annotations
@@ -47,17 +49,19 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(f"PixelRenderer needs llvm_ad_rgb; this machine runs {variant} (set DRJIT_LIBLLVM_PATH to LLVM 19)")
     scorer = Scorer.from_pretrained("fcnn_fast")
     print(f"{variant}; {args.resolution}x{args.resolution}; {args.spp} spp mean; median of {args.repeats}")
-    print("| scene | mi.render (s) | PixelRenderer, uniform (s) | ratio | PixelRenderer, adaptive counts (s) | ratio | counts min / max |")
-    print("|---|---:|---:|---:|---:|---:|---|")
+    print("| scene | mi.render (s) | PixelRenderer traced every call, uniform (s) | ratio | PixelRenderer, uniform (s) | ratio "
+          "| PixelRenderer, adaptive counts (s) | ratio | counts min / max |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
     for name in args.scenes.split(","):
         scene = loop_scene(name, (args.resolution, args.resolution))
         loaded = _load(scene)
-        renderer = PixelRenderer(loaded)
+        renderer, traced = PixelRenderer(loaded), PixelRenderer(loaded, freeze=False)
         _, log = render_adaptive(scene, scorer, total_spp=args.spp, max_overhead=None, seed=5)
         adaptive = np.round(log[-1]["spp_map"] * args.spp / log[-1]["spp_map"].mean()).astype(np.int64)
         uniform = np.full_like(adaptive, args.spp)
         ways = {"mi.render": lambda seed: _render(loaded, args.spp, seed),
                 "uniform": lambda seed: renderer(uniform, seed),
+                "traced": lambda seed: traced(uniform, seed),
                 "adaptive": lambda seed: renderer(adaptive, seed)}
         times: dict[str, list[float]] = {way: [] for way in ways}
         for way, fn in ways.items():
@@ -68,7 +72,8 @@ def main(argv: list[str] | None = None) -> None:
                 fn(10 + rep)
                 times[way].append(time.perf_counter() - start)
         med = {way: statistics.median(t) for way, t in times.items()}
-        print(f"| {name} | {med['mi.render']:.3f} | {med['uniform']:.3f} | {med['uniform'] / med['mi.render']:.2f} | "
+        print(f"| {name} | {med['mi.render']:.3f} | {med['traced']:.3f} | {med['traced'] / med['mi.render']:.2f} | "
+              f"{med['uniform']:.3f} | {med['uniform'] / med['mi.render']:.2f} | "
               f"{med['adaptive']:.3f} | {med['adaptive'] / med['mi.render']:.2f} | {adaptive.min()} / {adaptive.max()} |", flush=True)
 
 
