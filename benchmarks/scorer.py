@@ -59,6 +59,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from nriqa.atomic import write_text_atomic  # noqa: E402
 from nriqa.models import create_model, list_models  # noqa: E402
 from nriqa.scorer import Scorer  # noqa: E402
 
@@ -158,7 +159,7 @@ def find_scorers(args) -> dict[str, Scorer]:
 
 
 def accuracy(args) -> str:
-    from nriqa.correlation import pcc, srocc
+    from nriqa.correlation import bootstrap_interval, pcc, srocc
     from nriqa.data.images import load_ldr
     from nriqa.manifest import read_manifest
     from nriqa.ssim import ssim_map
@@ -183,8 +184,9 @@ def accuracy(args) -> str:
         truth_maps.append(ssim_map(x, y)[0, 0])
         truth_mae.append(float((x - y).abs().mean()))
         noisy.append(x[0].permute(1, 2, 0).numpy())  # already tone-mapped: score as LDR
-    rows, points = [], []
+    rows, points, pooled_by = [], [], {}
     pixels = sum(img.shape[0] * img.shape[1] for img in noisy)
+    truths = {"ssim": torch.tensor([float(m.mean()) for m in truth_maps]), "mae": torch.tensor(truth_mae)}
     for label, scorer in scorers.items():
         for stride in (args.patch_strides if scorer.output == "patch" else [None]):
             if stride is not None:
@@ -194,20 +196,35 @@ def accuracy(args) -> str:
             mpix = pixels / (time.perf_counter() - t0) / 1e6
             pooled = torch.tensor([p.score for p in preds])
             if scorer.quantity == "ssim":
-                truth = torch.tensor([float(m.mean()) for m in truth_maps])
                 pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
                 pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
                 pixel = f"{pcc(pix_p, pix_t):.3f}"
             else:
-                truth, pixel = torch.tensor(truth_mae), "-"
-            rho = float(srocc(pooled, truth))
+                pixel = "-"
             name = label if stride is None else f"{label} (stride {stride})"
-            rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", pixel, f"{mpix:.3g}"])
+            rho, low, high = bootstrap_interval(srocc, pooled, truths[scorer.quantity])
+            pooled_by[name] = (scorer.quantity, pooled, rho)
+            rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", f"{low:.3f}–{high:.3f}", pixel, f"{mpix:.3g}"])
             points.append((name, mpix, rho))
+    # Paired: each predictor against the best of its quantity on the same images (resampled together).
+    for row in rows:
+        quantity, pooled, _ = pooled_by[row[0]]
+        best = max((n for n, (q, _, _) in pooled_by.items() if q == quantity), key=lambda n: pooled_by[n][2])
+        if best == row[0]:
+            row.insert(5, "best")
+        else:
+            diff, low, high = bootstrap_interval(srocc, pooled, truths[quantity], other=pooled_by[best][1])
+            row.insert(5, f"{diff:+.3f} ({low:+.3f} to {high:+.3f})")
+    scores_file = args.out / "accuracy_scores.json"
+    write_text_atomic(scores_file, json.dumps({"data": str(args.data), "scene": args.val_scene, "ids": [r.id for r in tests],
+                              "true_ssim": truths["ssim"].tolist(), "true_mae": truths["mae"].tolist(),
+                              "predicted": {n: {"quantity": q, "scores": s.tolist()} for n, (q, s, _) in pooled_by.items()}}, indent=1))
     _frontier_plot(points, args.out / "frontier.png", args.val_scene)
-    return (f"scene {args.val_scene}, {len(tests)} test images of {args.data}; Mpix/s: scoring these images "
-            "(tone-mapped, as LDR) one by one in this run. Plot: frontier.png\n\n") + md_table(
-        ["weights", "predicts", "images", "image SROCC", "pixel PCC (SSIM map)", "Mpix/s"], rows)
+    return (f"scene {args.val_scene}, {len(tests)} test images of {args.data}; 95 % intervals: percentile bootstrap over "
+            "the images (2000 resamples); 'to the best': the paired difference in image SROCC to the best predictor of "
+            "the same quantity, the same images resampled for both. Mpix/s: scoring these images (tone-mapped, as LDR) "
+            f"one by one in this run. Pooled scores per image: {scores_file.name}. Plot: frontier.png\n\n") + md_table(
+        ["weights", "predicts", "images", "image SROCC", "95 % interval", "to the best (95 %)", "pixel PCC (SSIM map)", "Mpix/s"], rows)
 
 
 def _frontier_plot(points, path: Path, scene: str) -> None:

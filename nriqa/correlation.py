@@ -94,3 +94,55 @@ def kendall_tau(a, b) -> float:
     """
     pair = _prepare(a, b, "kendall_tau")
     return 0.0 if pair is None else _finish(kendall_rank_corrcoef(*pair, variant="b"))
+
+
+def bootstrap_interval(fn, a, b, *, other=None, resamples: int = 2000, level: float = 0.95,
+                       seed: int = 0) -> tuple[float, float, float]:
+    """A correlation and its percentile bootstrap interval, resampling the pairs with replacement.
+
+    With ``other`` (a second predictor's ``(N,)`` scores of the same items) the statistic is the
+    paired difference ``fn(a, b) - fn(other, b)``, each resample taking the same items for both:
+    whether two predictors differ on these items, which two separate intervals cannot tell.
+    Deterministic for a ``seed``. On few items (the 48 test images of one held-out scene) an
+    SROCC of 0.97 carries an interval of several hundredths: differences below that are not
+    measured.
+
+    Args:
+        fn: :func:`pcc`, :func:`srocc` or :func:`kendall_tau`.
+        a: ``(N,)`` predicted scores, N >= 2, finite.
+        b: ``(N,)`` true scores.
+        other: ``(N,)`` scores of a second predictor, or ``None``.
+        resamples: number of bootstrap resamples (>= 100).
+        level: coverage of the interval, in (0, 1).
+        seed: seed of the resampling.
+
+    Returns:
+        ``(estimate, low, high)``: the statistic on all items and the interval's bounds.
+
+    Examples:
+        >>> est, low, high = bootstrap_interval(srocc, torch.arange(20.0), torch.arange(20.0) ** 2)
+        >>> (est, low, high)
+        (1.0, 1.0, 1.0)
+    """
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"bootstrap_interval: level must be in (0, 1), got {level}")
+    if resamples < 100:
+        raise ValueError(f"bootstrap_interval: need at least 100 resamples, got {resamples}")
+    a = torch.as_tensor(a, dtype=torch.float64)
+    b = torch.as_tensor(b, dtype=torch.float64)
+    if other is not None:
+        other = torch.as_tensor(other, dtype=torch.float64)
+        if other.shape != a.shape:
+            raise ValueError(f"bootstrap_interval: other must have the shape of a, {tuple(a.shape)}, got {tuple(other.shape)}")
+
+    def statistic(index: Tensor) -> float:
+        value = fn(a[index], b[index])
+        return value if other is None else value - fn(other[index], b[index])
+
+    estimate = statistic(torch.arange(a.numel()))  # also validates the inputs, with fn's own message
+    generator = torch.Generator().manual_seed(seed)
+    draws = torch.randint(0, a.numel(), (resamples, a.numel()), generator=generator)
+    values = torch.tensor([statistic(index) for index in draws], dtype=torch.float64)
+    tail = (1.0 - level) / 2.0
+    low, high = torch.quantile(values, torch.tensor([tail, 1.0 - tail], dtype=torch.float64)).tolist()
+    return estimate, low, high

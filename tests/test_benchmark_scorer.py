@@ -47,3 +47,33 @@ def test_render_section_writes_every_method(tmp_path):
     for method in ("image", "probes past 64 spp"):
         (row,) = [line for line in table.splitlines() if line.startswith("| cornell | 0.5 |") and f"| {method} |" in line]
         assert len(row.strip("|").split("|")) == 9
+
+
+@pytest.mark.usefixtures("one_thread")
+def test_accuracy_section_gives_intervals_paired_differences_and_the_scores(tmp_path):
+    import json
+
+    from conftest import make_dataset
+
+    from nriqa.correlation import srocc
+
+    data = make_dataset(tmp_path / "data", size=48, scenes=("alpha",), spps=(1, 2, 4, 8, 16, 32, 64, 128), twins=False)
+    load_benchmark().main(["--out", str(tmp_path / "out"), "--skip", "throughput,memory,range,stop,render",
+                           "--data", str(data), "--val-scene", "alpha", "--threads", "1"])
+    table = (tmp_path / "out" / "scorer.md").read_text()
+    scores = json.loads((tmp_path / "out" / "accuracy_scores.json").read_text())
+    assert len(scores["ids"]) == len(scores["true_ssim"]) == 8
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.strip("|").split("|")]
+            for line in table.splitlines() if line.startswith("| shipped:")}
+    assert set(rows) == set(scores["predicted"]) == {"shipped:fcnn_fast", "shipped:fcnn"}
+    for name, row in rows.items():
+        rho = srocc(scores["predicted"][name]["scores"], scores["true_ssim"])
+        assert float(row[3]) == pytest.approx(rho, abs=5e-4)
+        low, high = (float(v) for v in row[4].split("–"))
+        assert low <= float(row[3]) <= high
+    # One is the best; the other carries its paired difference to it, with an interval around it.
+    assert sorted(row[5] == "best" for row in rows.values()) == [False, True]
+    (other,) = [row for row in rows.values() if row[5] != "best"]
+    diff = float(other[5].split()[0])
+    low, high = (float(v) for v in other[5].split("(")[1].rstrip(")").split(" to "))
+    assert diff <= 0 and low <= diff <= high
