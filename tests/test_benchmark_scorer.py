@@ -77,3 +77,14 @@ def test_accuracy_section_gives_intervals_paired_differences_and_the_scores(tmp_
     diff = float(other[5].split()[0])
     low, high = (float(v) for v in other[5].split("(")[1].rstrip(")").split(" to "))
     assert diff <= 0 and low <= diff <= high
+
+
+def test_accuracy_section_with_a_checkpoint_dir_scores_only_its_checkpoints(tmp_path):
+    from conftest import make_dataset
+
+    data = make_dataset(tmp_path / "data", size=32, scenes=("alpha",), spps=(1, 4), twins=False)
+    (tmp_path / "ckpts").mkdir()
+    load_benchmark().main(["--out", str(tmp_path / "out"), "--skip", "throughput,memory,range,stop,render",
+                           "--data", str(data), "--val-scene", "alpha", "--checkpoint-dir", str(tmp_path / "ckpts")])
+    table = (tmp_path / "out" / "scorer.md").read_text()
+    assert "no weights: no *.ckpt under" in table and "shipped:" not in table
