@@ -18,8 +18,8 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    with ``--val-scene`` held out; without it the shipped weights, which learnt every scene): on the
    test images of ``--val-scene``, image-level SROCC of the pooled prediction against the true mean
    SSIM (MAE for the patch model) with its 95 % bootstrap interval, each predictor's paired
-   difference to the best one (the same images resampled for both: whether "within 0.01" is
-   measured at all on this many images), and pixel PCC of the map against the true SSIM map; the
+   difference to ``--against`` (a name in the table), else to the best one of its quantity (the
+   same images resampled for both: whether "within 0.01" is measured at all on this many images), and pixel PCC of the map against the true SSIM map; the
    pooled scores per image go to ``accuracy_scores.json``. Without weights it prints "no weights".
 4. **range** -- on each render scene, at each ``--range-spp``, without a clock: the scorer's pooled
    score and map against the truth on uniform images, and the error of adaptive sampling (predicted
@@ -210,14 +210,19 @@ def accuracy(args) -> str:
             pooled_by[name] = (scorer.quantity, pooled, rho)
             rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", f"{low:.3f}–{high:.3f}", pixel, f"{mpix:.3g}"])
             points.append((name, mpix, rho))
-    # Paired: each predictor against the best of its quantity on the same images (resampled together).
+    # Paired: each predictor against --against, else the best of its quantity, on the same images.
+    if args.against is not None and args.against not in pooled_by:
+        return f"--against {args.against!r} is not among the weights scored here: {', '.join(pooled_by)}"
     for row in rows:
         quantity, pooled, _ = pooled_by[row[0]]
-        best = max((n for n, (q, _, _) in pooled_by.items() if q == quantity), key=lambda n: pooled_by[n][2])
-        if best == row[0]:
-            row.insert(5, "best")
+        if args.against is not None and pooled_by[args.against][0] == quantity:
+            base = args.against
         else:
-            diff, low, high = bootstrap_interval(srocc, pooled, truths[quantity], other=pooled_by[best][1])
+            base = max((n for n, (q, _, _) in pooled_by.items() if q == quantity), key=lambda n: pooled_by[n][2])
+        if base == row[0]:
+            row.insert(5, "(the base)")
+        else:
+            diff, low, high = bootstrap_interval(srocc, pooled, truths[quantity], other=pooled_by[base][1])
             row.insert(5, f"{diff:+.3f} ({low:+.3f} to {high:+.3f})")
     scores_file = args.out / "accuracy_scores.json"
     write_text_atomic(scores_file, json.dumps({"data": str(args.data), "scene": args.val_scene, "ids": [r.id for r in tests],
@@ -225,10 +230,10 @@ def accuracy(args) -> str:
                               "predicted": {n: {"quantity": q, "scores": s.tolist()} for n, (q, s, _) in pooled_by.items()}}, indent=1))
     _frontier_plot(points, args.out / "frontier.png", args.val_scene)
     return (f"scene {args.val_scene}, {len(tests)} test images of {args.data}; 95 % intervals: percentile bootstrap over "
-            "the images (2000 resamples); 'to the best': the paired difference in image SROCC to the best predictor of "
-            "the same quantity, the same images resampled for both. Mpix/s: scoring these images (tone-mapped, as LDR) "
+            "the images (2000 resamples); 'to the base': the paired difference in image SROCC to "
+            f"{args.against or 'the best predictor of the same quantity'}, the same images resampled for both. Mpix/s: scoring these images (tone-mapped, as LDR) "
             f"one by one in this run. Pooled scores per image: {scores_file.name}. Plot: frontier.png\n\n") + md_table(
-        ["weights", "predicts", "images", "image SROCC", "95 % interval", "to the best (95 %)", "pixel PCC (SSIM map)", "Mpix/s"], rows)
+        ["weights", "predicts", "images", "image SROCC", "95 % interval", "to the base (95 %)", "pixel PCC (SSIM map)", "Mpix/s"], rows)
 
 
 def _frontier_plot(points, path: Path, scene: str) -> None:
@@ -462,6 +467,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--data", type=Path)
     ap.add_argument("--val-scene", default="cornell")
     ap.add_argument("--checkpoint-dir", type=Path)
+    ap.add_argument("--against", help="accuracy: the weights (as named in the table) the others are paired against; default: the best")
     ap.add_argument("--patch-strides", type=lambda v: [int(x) for x in v.split(",")], default=[16, 8],
                     help="accuracy: strides for patch-model weights (stride 1 costs ~40 s per 128x128 image)")
     ap.add_argument("--scenes", default="cornell,caustic,door")

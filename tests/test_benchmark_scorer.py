@@ -72,11 +72,23 @@ def test_accuracy_section_gives_intervals_paired_differences_and_the_scores(tmp_
         low, high = (float(v) for v in row[4].split("–"))
         assert low <= float(row[3]) <= high
     # One is the best; the other carries its paired difference to it, with an interval around it.
-    assert sorted(row[5] == "best" for row in rows.values()) == [False, True]
-    (other,) = [row for row in rows.values() if row[5] != "best"]
+    assert sorted(row[5] == "(the base)" for row in rows.values()) == [False, True]
+    (other,) = [row for row in rows.values() if row[5] != "(the base)"]
     diff = float(other[5].split()[0])
     low, high = (float(v) for v in other[5].split("(")[1].rstrip(")").split(" to "))
     assert diff <= 0 and low <= diff <= high
+    # --against makes the other one the base: the same difference, the other way round.
+    (worse,) = [name for name, row in rows.items() if row[5] != "(the base)"]
+    (better,) = [name for name in rows if name != worse]
+    load_benchmark().main(["--out", str(tmp_path / "out2"), "--skip", "throughput,memory,range,stop,render",
+                           "--data", str(data), "--val-scene", "alpha", "--threads", "1", "--against", worse])
+    table = (tmp_path / "out2" / "scorer.md").read_text()
+    row = [c.strip() for c in next(line for line in table.splitlines() if line.startswith(f"| {better} |")).strip("|").split("|")]
+    assert float(row[5].split()[0]) == pytest.approx(-diff, abs=1e-3)
+    assert f"| {worse} |" in table and "(the base)" in table
+    load_benchmark().main(["--out", str(tmp_path / "out3"), "--skip", "throughput,memory,range,stop,render",
+                           "--data", str(data), "--val-scene", "alpha", "--threads", "1", "--against", "nothing.ckpt"])
+    assert "--against 'nothing.ckpt' is not among the weights scored here" in (tmp_path / "out3" / "scorer.md").read_text()
 
 
 def test_accuracy_section_with_a_checkpoint_dir_scores_only_its_checkpoints(tmp_path):
