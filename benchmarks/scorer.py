@@ -209,7 +209,7 @@ def accuracy(args) -> str:
             rho, low, high = bootstrap_interval(srocc, pooled, truths[scorer.quantity])
             pooled_by[name] = (scorer.quantity, pooled, rho)
             rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", f"{low:.3f}–{high:.3f}", pixel, f"{mpix:.3g}"])
-            points.append((name, mpix, rho))
+            points.append((name, mpix, rho, low, high))
     # Paired: each predictor against --against, else the best of its quantity, on the same images.
     if args.against is not None and args.against not in pooled_by:
         return f"--against {args.against!r} is not among the weights scored here: {', '.join(pooled_by)}"
@@ -243,10 +243,10 @@ def _frontier_plot(points, path: Path, scene: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    for name, mpix, rho in points:
-        ax.scatter(mpix, rho)
+    for name, mpix, rho, low, high in points:
+        ax.errorbar(mpix, rho, yerr=[[rho - low], [high - rho]], fmt="o", capsize=3)
         ax.annotate(name, (mpix, rho), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    ax.set(xscale="log", xlabel="Mpix/s (this CPU)", ylabel=f"image SROCC, held-out {scene}", title="accuracy / run-time frontier")
+    ax.set(xscale="log", xlabel="Mpix/s (this CPU)", ylabel=f"image SROCC, held-out {scene}", title="accuracy / run-time frontier (95 % bootstrap intervals)")
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
