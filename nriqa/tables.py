@@ -15,7 +15,9 @@ def _cell(value, digits: int) -> str:
     if isinstance(value, bool):
         return "yes" if value else "no"
     if isinstance(value, float):
-        return "nan" if math.isnan(value) else f"{value:.{digits}f}"
+        # NaN marks "not defined here" (a predictor without a map has no pixel PCC): a dash for
+        # people; the CSV keeps NaN for machines.
+        return "–" if math.isnan(value) else f"{value:.{digits}f}"
     return "" if value is None else str(value)
 
 
@@ -29,7 +31,7 @@ def write_csv(path: str | os.PathLike, rows: list[dict], columns: list[str]) -> 
 
 
 def markdown_table(rows: list[dict], columns: list[str], digits: int = 3) -> str:
-    """A GitHub Markdown table of ``rows``; floats with ``digits`` decimals, booleans as yes/no."""
+    """A GitHub Markdown table of ``rows``; floats with ``digits`` decimals (NaN as "–"), booleans as yes/no."""
     lines = ["| " + " | ".join(columns) + " |", "|" + "|".join("---" for _ in columns) + "|"]
     lines += ["| " + " | ".join(_cell(r.get(c), digits) for c in columns) + " |" for r in rows]
     return "\n".join(lines) + "\n"
