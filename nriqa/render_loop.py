@@ -144,6 +144,21 @@ def _camera_samples(scene, index, seed, width: int, offset: tuple[int, int], ful
     return dr.select(dr.isfinite(rgb), rgb, 0.0)
 
 
+def _aligned(array: np.ndarray, alignment: int = 64) -> np.ndarray:
+    """A copy of the non-empty 1-D ``array`` whose data starts on an ``alignment``-byte boundary.
+
+    Dr.Jit maps a numpy array's memory rather than copying it, and a frozen function records anew
+    when that memory's alignment differs from the recorded call's: numpy's allocations are aligned
+    or not by chance, so without this a frozen renderer re-recorded (and, with a cold kernel cache,
+    compiled for 0.2-0.5 s) at an unpredictable step of a timed loop.
+    """
+    buffer = np.empty(array.size * array.itemsize + alignment, dtype=np.uint8)
+    start = -buffer.ctypes.data % alignment
+    out = buffer[start : start + array.size * array.itemsize].view(array.dtype)
+    out[:] = array
+    return out
+
+
 class PixelRenderer:
     """Renders any number of samples in each pixel of a loaded scene's first sensor, in one call.
 
@@ -154,8 +169,9 @@ class PixelRenderer:
     which float atomics would not promise).
     Needs a JIT variant (``llvm_ad_rgb``). The seed is passed as an opaque value so that a new
     seed or a new wavefront size does not recompile the kernel, and with ``freeze`` (default) the
-    sampling code is a Dr.Jit frozen function: it is traced once (a few times at most, when the
-    wavefront's size meets that of a scene buffer) and later calls replay the recorded kernel.
+    sampling code is a Dr.Jit frozen function: it is traced once and later calls replay the
+    recorded kernel (the pixel indices go in 64-byte aligned, see :func:`_aligned`: Dr.Jit records
+    anew when the alignment of mapped memory changes).
     Tracing the integrator costs ~7-12 ms a call on a 2-core CPU, as much as rendering 1 spp of
     a simple 128x128 scene; ``mi.render`` pays it on every call. Frozen and traced calls give the
     same sums, bit for bit.
@@ -192,7 +208,7 @@ class PixelRenderer:
         sums = np.zeros((3, pixels))
         if index.size == 0:
             return sums.T.reshape(self.height, self.width, 3)
-        rgb = self._samples(self.scene, mi.UInt32(index), dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
+        rgb = self._samples(self.scene, mi.UInt32(_aligned(index)), dr.opaque(mi.UInt32, seed & 0xFFFFFFFF),
                             self.width, self.offset, self.full)
         dr.eval(rgb)  # one kernel for all three channels (reading .x, .y, .z lazily would trace three times)
         values = np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)])

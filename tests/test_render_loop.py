@@ -16,6 +16,7 @@ from nriqa.models import create_model  # noqa: E402
 from nriqa.render_loop import (  # noqa: E402
     PixelRenderer,
     ReferenceScorer,
+    _aligned,
     _Clock,
     _ErrorModel,
     _expected_gain,
@@ -321,6 +322,25 @@ def test_frozen_pixel_renderer_gives_the_traced_sums(llvm_scene):
         counts = rng.integers(0, 3 + 2 * k, size=(SIZE, SIZE))
         np.testing.assert_array_equal(frozen(counts, seed=k), traced(counts, seed=k))
     assert 1 <= frozen._samples.n_recordings <= 3  # replayed, not traced again on every call
+
+
+def test_frozen_pixel_renderer_records_once_whatever_the_sample_memory(llvm_scene):
+    # Dr.Jit maps the index array's memory; a frozen function records anew when its alignment changes,
+    # which numpy leaves to chance (2 recordings in 30 calls before the index was aligned).
+    scene, _ = llvm_scene
+    renderer = PixelRenderer(mi.load_dict(scene))
+    rng = np.random.default_rng(0)
+    for k in range(30):
+        renderer(rng.integers(1, 4 + k, size=(SIZE, SIZE)), seed=k)
+    assert renderer._samples.n_recordings == 1
+
+
+@pytest.mark.parametrize("dtype, size", [(np.uint32, 1), (np.uint32, 12345), (np.float64, 77)])
+def test_aligned_copies_onto_the_boundary(dtype, size):
+    array = np.arange(size, dtype=dtype)
+    out = _aligned(array)
+    assert out.dtype == array.dtype and out.ctypes.data % 64 == 0
+    np.testing.assert_array_equal(out, array)
 
 
 def test_render_adaptive_per_pixel(llvm_scene):
