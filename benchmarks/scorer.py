@@ -173,6 +173,12 @@ def accuracy(args) -> str:
     scorers = find_scorers(args)
     if not scorers:
         return f"no weights: no *.ckpt under {args.checkpoint_dir}" if args.checkpoint_dir else "no weights: no shipped weights"
+    # One run per scorer (per stride for the patch model), named as in the table.
+    runs = {(label if stride is None else f"{label} (stride {stride})"): (scorer, stride)
+            for label, scorer in scorers.items()
+            for stride in (args.patch_strides if scorer.output == "patch" else [None])}
+    if args.against is not None and args.against not in runs:
+        return f"--against {args.against!r} is not among the weights scored here: {', '.join(runs)}"
     try:
         records, _ = read_manifest(args.data)
     except ValueError as exc:  # ManifestError: one line
@@ -188,47 +194,43 @@ def accuracy(args) -> str:
         truth_maps.append(ssim_map(x, y)[0, 0])
         truth_mae.append(float((x - y).abs().mean()))
         noisy.append(x[0].permute(1, 2, 0).numpy())  # already tone-mapped: score as LDR
-    rows, points, pooled_by = [], [], {}
     pixels = sum(img.shape[0] * img.shape[1] for img in noisy)
     truths = {"ssim": torch.tensor([float(m.mean()) for m in truth_maps]), "mae": torch.tensor(truth_mae)}
-    for label, scorer in scorers.items():
-        for stride in (args.patch_strides if scorer.output == "patch" else [None]):
-            if stride is not None:
-                scorer.stride = stride
-            t0 = time.perf_counter()
-            preds = [scorer(img, hdr=False) for img in noisy]
-            mpix = pixels / (time.perf_counter() - t0) / 1e6
-            pooled = torch.tensor([p.score for p in preds])
-            if scorer.quantity == "ssim":
-                pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
-                pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
-                pixel = f"{pcc(pix_p, pix_t):.3f}"
-            else:
-                pixel = "-"
-            name = label if stride is None else f"{label} (stride {stride})"
-            rho, low, high = bootstrap_interval(srocc, pooled, truths[scorer.quantity])
-            pooled_by[name] = (scorer.quantity, pooled, rho)
-            rows.append([name, scorer.quantity, len(tests), f"{rho:.3f}", f"{low:.3f}–{high:.3f}", pixel, f"{mpix:.3g}"])
-            points.append((name, mpix, rho, low, high))
-    # Paired: each predictor against --against, else the best of its quantity, on the same images.
-    if args.against is not None and args.against not in pooled_by:
-        return f"--against {args.against!r} is not among the weights scored here: {', '.join(pooled_by)}"
-    for row in rows:
-        quantity, pooled, _ = pooled_by[row[0]]
-        if args.against is not None and pooled_by[args.against][0] == quantity:
-            base = args.against
+    results = {}
+    for name, (scorer, stride) in runs.items():
+        if stride is not None:
+            scorer.stride = stride
+        t0 = time.perf_counter()
+        preds = [scorer(img, hdr=False) for img in noisy]
+        mpix = pixels / (time.perf_counter() - t0) / 1e6
+        pooled = torch.tensor([p.score for p in preds])
+        if scorer.quantity == "ssim":
+            pix_p = torch.cat([torch.from_numpy(p.map).flatten()[::7] for p in preds])
+            pix_t = torch.cat([m.flatten()[::7] for m in truth_maps])
+            pixel = f"{pcc(pix_p, pix_t):.3f}"
         else:
-            base = max((n for n, (q, _, _) in pooled_by.items() if q == quantity), key=lambda n: pooled_by[n][2])
-        if base == row[0]:
-            row.insert(5, "(the base)")
+            pixel = "-"
+        rho, low, high = bootstrap_interval(srocc, pooled, truths[scorer.quantity])
+        results[name] = {"quantity": scorer.quantity, "pooled": pooled, "rho": rho, "low": low, "high": high,
+                         "pixel": pixel, "mpix": mpix}
+    # Paired: each predictor against --against where it predicts the same quantity, else the best of its quantity.
+    base = {q: max((n for n, r in results.items() if r["quantity"] == q), key=lambda n: results[n]["rho"])
+            for q in {r["quantity"] for r in results.values()}}
+    if args.against is not None:
+        base[results[args.against]["quantity"]] = args.against
+    rows = []
+    for name, r in results.items():
+        if base[r["quantity"]] == name:
+            paired = "(the base)"
         else:
-            diff, low, high = bootstrap_interval(srocc, pooled, truths[quantity], other=pooled_by[base][1])
-            row.insert(5, f"{diff:+.3f} ({low:+.3f} to {high:+.3f})")
+            diff, low, high = bootstrap_interval(srocc, r["pooled"], truths[r["quantity"]], other=results[base[r["quantity"]]]["pooled"])
+            paired = f"{diff:+.3f} ({low:+.3f} to {high:+.3f})"
+        rows.append([name, r["quantity"], len(tests), f"{r['rho']:.3f}", f"{r['low']:.3f}–{r['high']:.3f}", paired, r["pixel"], f"{r['mpix']:.3g}"])
     scores_file = args.out / "accuracy_scores.json"
     write_text_atomic(scores_file, json.dumps({"data": str(args.data), "scene": args.val_scene, "ids": [r.id for r in tests],
                               "true_ssim": truths["ssim"].tolist(), "true_mae": truths["mae"].tolist(),
-                              "predicted": {n: {"quantity": q, "scores": s.tolist()} for n, (q, s, _) in pooled_by.items()}}, indent=1))
-    _frontier_plot(points, args.out / "frontier.png", args.val_scene)
+                              "predicted": {n: {"quantity": r["quantity"], "scores": r["pooled"].tolist()} for n, r in results.items()}}, indent=1))
+    _frontier_plot([(n, r["mpix"], r["rho"], r["low"], r["high"]) for n, r in results.items()], args.out / "frontier.png", args.val_scene)
     return (f"scene {args.val_scene}, {len(tests)} test images of {args.data}; 95 % intervals: percentile bootstrap over "
             "the images (2000 resamples); 'to the base': the paired difference in image SROCC to "
             f"{args.against or 'the best predictor of the same quantity'}, the same images resampled for both. Mpix/s: scoring these images (tone-mapped, as LDR) "
