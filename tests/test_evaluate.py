@@ -59,6 +59,8 @@ def test_cli_writes_tables_and_figures(synthetic_dataset, tmp_path):
         "images.csv",
         "scatter.png",
         "maps_dual_buffer_beta.png",
+        "monotone.md",
+        "monotone.csv",
     ):
         assert (tmp_path / name).is_file(), name
     table = (tmp_path / "comparison.md").read_text()

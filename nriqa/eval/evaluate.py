@@ -20,6 +20,7 @@ every predictor -- shipped weights, checkpoints and cross-validation runs throug
   is fitted on the scenes other than the one it is evaluated on.
 
 Writes ``comparison.{csv,md}`` (rows = predictors), ``per_scene.{csv,md}``, ``images.csv``,
+``monotone.{csv,md}`` (whether SSIM-scale predictions rise with spp, :mod:`nriqa.eval.monotone`),
 ``scatter.png`` and ``maps_<predictor>_<scene>.png`` (noisy | predicted | true | reference)
 (:mod:`nriqa.eval.plots`).
 """
@@ -39,6 +40,7 @@ from nriqa.core.sampling import metric_samples
 from nriqa.eval.baselines import Item, Prediction, Predictor, baseline_names
 from nriqa.eval.baselines.mapping import MonotoneMap
 from nriqa.eval.dataset import Dataset, EvaluationError, load_dataset, records_of
+from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
 from nriqa.eval.plots import figure_items, plot_maps, plot_scatter
 from nriqa.eval.predictors import build_predictors
 from nriqa.io.atomic import write_text_atomic
@@ -208,6 +210,7 @@ def _write_tables(
     per_scene: list[dict],
     n_images: int,
     scenes: list[str],
+    monotone: tuple[list[dict], list[dict]] | None = None,
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "comparison.csv", comparison, COMPARISON_COLUMNS)
@@ -221,6 +224,18 @@ def _write_tables(
     )
     write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
     write_text_atomic(out / "per_scene.md", header + markdown_table(per_scene, SCENE_COLUMNS))
+    if monotone is not None:
+        per_ladder, summary = monotone
+        write_csv(out / "monotone.csv", per_ladder, LADDER_COLUMNS)
+        write_text_atomic(
+            out / "monotone.md",
+            "# Monotone in samples?\n\nPer (scene, variant, algorithm) ladder: the largest rung-to-rung fall of "
+            "the predicted mean SSIM, and the lowest prediction where the true SSIM is >= 0.98. A ladder passes "
+            "with no fall above 0.01 and no such prediction below 0.96 (nriqa.eval.monotone).\n\n"
+            + markdown_table(summary, SUMMARY_COLUMNS)
+            + "\n"
+            + markdown_table(per_ladder, LADDER_COLUMNS),
+        )
 
 
 def _write_figures(
@@ -257,7 +272,9 @@ def evaluate(
     rows, pixels, maps = run_predictors(data, predictors, eval_scenes)
     comparison, per_scene = summarise(rows, pixels, predictors, eval_scenes)
     n_images = len([r for r in rows if r["predictor"] == predictors[0].name])
-    _write_tables(Path(out), root, rows, comparison, per_scene, n_images, eval_scenes)
+    ssim_names = [p.name for p in predictors if p.scale == "ssim"]
+    monotone = monotonicity(rows, ssim_names) if ssim_names else None
+    _write_tables(Path(out), root, rows, comparison, per_scene, n_images, eval_scenes, monotone)
     if figures:
         _write_figures(Path(out), data, rows, maps, predictors, eval_scenes)
     return comparison, per_scene
