@@ -23,7 +23,7 @@ from pathlib import Path
 from data_gen.plan import Job
 from data_gen.render import run_job
 from nriqa.errors import NriqaError
-from nriqa.render.backend import LLVM_VARIANT, init_worker, llvm_env, probe_llvm
+from nriqa.render.backend import PROBED_VARIANTS, init_worker, llvm_env, probe_variant, unusable
 
 log = logging.getLogger("data_gen")
 
@@ -94,14 +94,11 @@ def _setup_worker(backend: str, threads: int | None, verify: bool) -> None:
         threads = get_worker().state.nthreads
     if _WORKER_SETUP == (backend, threads):
         return
-    if verify and backend == LLVM_VARIANT:
-        # The client probed its own machine; a worker elsewhere may lack LLVM, which would abort it.
-        ok, reason = probe_llvm()
+    if verify and backend in PROBED_VARIANTS:
+        # The client probed its own machine; a worker elsewhere may lack LLVM (which would abort it) or a GPU.
+        ok, reason = probe_variant(backend)
         if not ok:
-            raise ExecutorError(
-                f"{LLVM_VARIANT} unusable on worker {os.uname().nodename}: {reason}; "
-                "install libllvm19 there or use backend=scalar_rgb"
-            )
+            raise ExecutorError(unusable(backend, reason, f" on worker {os.uname().nodename}"))
     init_worker(backend, threads)
     _WORKER_SETUP = (backend, threads)
 

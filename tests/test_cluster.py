@@ -171,9 +171,9 @@ def test_without_dask_the_error_names_the_extra(monkeypatch, tmp_path):
 
 def test_worker_without_llvm_refuses_the_llvm_variant(monkeypatch):
     monkeypatch.setattr(executors, "_WORKER_SETUP", None)
-    monkeypatch.setattr(executors, "probe_llvm", lambda: (False, "LLVM probe failed (abort)"))
+    monkeypatch.setattr(executors, "probe_variant", lambda variant: (False, "LLVM probe failed (abort)"))
     monkeypatch.setattr(executors, "init_worker", lambda *a: pytest.fail("Mitsuba set up despite a failed probe"))
-    with pytest.raises(executors.ExecutorError, match="llvm_ad_rgb unusable on worker .*backend=scalar_rgb"):
+    with pytest.raises(executors.ExecutorError, match="backend llvm_ad_rgb unusable on worker .*backend=scalar_rgb"):
         executors.render_on_worker("unused", None, "llvm_ad_rgb", threads=1, verify=True)
 
 

@@ -133,7 +133,7 @@ def test_cli_unwritable_out(tmp_path):
 
 
 def test_backend_falls_back_to_scalar_with_one_warning(monkeypatch, caplog):
-    monkeypatch.setattr(backend, "probe_llvm", lambda: (False, "LLVM probe failed (abort)"))
+    monkeypatch.setattr(backend, "probe_variant", lambda variant: (False, f"{variant} probe failed (abort)"))
     with caplog.at_level("WARNING"):
         assert backend.select_backend("auto") == backend.SCALAR_VARIANT
     assert len(caplog.records) == 1 and "falling back" in caplog.text
@@ -144,11 +144,28 @@ def test_backend_falls_back_to_scalar_with_one_warning(monkeypatch, caplog):
         backend.select_backend("cuda")
 
 
+def test_cuda_backend_is_probed_and_refused_with_one_line_without_a_gpu(monkeypatch):
+    asked = []
+    monkeypatch.setattr(backend, "probe_variant", lambda variant: asked.append(variant) or (False, "no GPU"))
+    with pytest.raises(RuntimeError, match="backend cuda_ad_rgb unusable: no GPU; it needs an NVIDIA GPU"):
+        backend.select_backend(backend.CUDA_VARIANT)
+    assert asked == [backend.CUDA_VARIANT]
+    monkeypatch.setattr(backend, "probe_variant", lambda variant: (True, "ok"))
+    assert backend.select_backend(backend.CUDA_VARIANT) == backend.CUDA_VARIANT
+    assert backend.select_backend("auto") == backend.LLVM_VARIANT  # auto never picks the GPU
+
+
+def test_data_gen_cuda_backend_on_a_cpu_machine_is_one_line(tmp_path):
+    proc = run_data_gen("preset=tiny", "scenes=[cornell]", "backend=cuda_ad_rgb", f"out={tmp_path / 'd'}")
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert "backend cuda_ad_rgb unusable" in proc.stderr and len(proc.stderr.strip().splitlines()) <= 2
+
+
 def test_llvm_probe_survives_a_broken_libllvm(monkeypatch):
     """A bad libLLVM may abort the interpreter; the probe runs in a subprocess, so we live on."""
     monkeypatch.setenv("DRJIT_LIBLLVM_PATH", "/nonexistent/libLLVM.so")
     ok, reason = backend.probe_llvm(timeout=60)
-    assert not ok and "LLVM probe" in reason
+    assert not ok and "llvm_ad_rgb probe" in reason
 
 
 def test_sanitize_counts_and_zeroes_nonfinite_pixels():
