@@ -4,12 +4,12 @@
                                 [--data data/default --val-scene cornell --checkpoint-dir DIR]
                                 [--scenes cornell,caustic,door --resolution 128 --budget 2 --render-repeats 3]
                                 [--range-spp 16,64,256] [--stop-targets 0.95,0.98 --stop-max-spp 1024]
-                                [--skip throughput,memory,accuracy,range,stop,render]
+                                [--skip throughput,memory,accuracy,range,stop,render] [--models fcnn_fast,...]
 
 Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as PNGs beside it:
 
 1. **throughput** -- Mpix/s of :class:`nriqa.inference.scorer.Scorer` (tone map + forward + pooling) for
-   every registered model on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
+   every registered model (or ``--models``) on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
    on a ``patch-size`` square (its cost grows with 1/stride^2). Time only: untrained weights.
 2. **memory** -- peak resident memory of scoring a 4096x4096 HDR image with ``fcnn_fast``, tiled
    (512) and untiled, each in a fresh subprocess: peak RSS (``resource.getrusage``) and its rise
@@ -87,16 +87,17 @@ def timed(fn, repeats: int) -> float:
 def throughput(args) -> str:
     rng = np.random.default_rng(0)
     rows = []
-    for name in list_models():
+    for name in args.models.split(",") if args.models else list_models():
         torch.manual_seed(0)
         scorer = Scorer(create_model(name), stride=8)
         size = args.patch_size if scorer.output == "patch" else args.size
         img = (rng.random((size, size, 3)) * 4).astype(np.float32)
+        twin = (rng.random((size, size, 3)) * 4).astype(np.float32) if scorer.needs_twin else None
         strides = (1, 4, 8, 16) if scorer.output == "patch" else (None,)
         for stride in strides:
             if stride is not None:
                 scorer.stride = stride
-            t = timed(lambda s=scorer, x=img: s(x, hdr=True), args.repeats if stride != 1 else 1)
+            t = timed(lambda s=scorer, x=img, y=twin: s(x, hdr=True, twin=y), args.repeats if stride != 1 else 1)
             rows.append([name, size, stride or "-", f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
             print(f"  throughput {name} stride={stride}: {t:.3f} s", file=sys.stderr)
     return markdown_table(rows, ["model", "side (px)", "stride", "ms / image", "Mpix/s"])
@@ -226,6 +227,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--models", default="", help="throughput: comma-separated registered models (default all)")
     ap.add_argument("--patch-size", type=int, default=128)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--memory-side", type=int, default=4096)
