@@ -8,6 +8,7 @@ from nriqa.models import create_model, list_models, register_model
 
 MAP_MODELS = ["fcnn", "fcnn11", "fcnn_fast"]
 PARAMS = {
+    "dual_fast": 28_036,
     "patch_cnn": 8_553_889,
     "fcnn": 1_896_577,
     "fcnn11": 2_487_169,

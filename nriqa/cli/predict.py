@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="TWIN",
         default=None,
-        help="for a two-buffer model (unet_fast_twin): an independent render of each IMAGE at the same spp, in order",
+        help="for a two-buffer model (dual_fast): an independent render of each IMAGE at the same spp, in order",
     )
     ap.add_argument("--weights-dir", type=Path, default=None, help="folder of shipped weights (default: the package's)")
     ap.add_argument("--out", type=Path, default=Path("predictions"), help="output folder (default predictions/)")
@@ -185,7 +185,7 @@ def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
     if scorer.needs_twin and args.twin is None:
         return f"{model} scores an image with its twin: pass --twin TWIN (an independent render at the same spp)"
     if not scorer.needs_twin and args.twin is not None:
-        return f"{model} scores one image; --twin needs a two-buffer model (--model unet_fast_twin)"
+        return f"{model} scores one image; --twin needs a two-buffer model (--model dual_fast)"
     if args.twin is not None and len(args.twin) != len(args.images):
         return f"{len(args.images)} images but {len(args.twin)} twins: give one twin per image, in order"
     return None

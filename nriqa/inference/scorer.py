@@ -82,7 +82,7 @@ class Scorer:
       with :class:`ScorerInputError`: padding would make up most of what the network sees, and the
       SSIM the map predicts is itself undefined below 6x6 pixels.
 
-    Two-buffer models (``needs_twin``, e.g. ``unet_fast_twin``) take the image and an independent
+    Two-buffer models (``needs_twin``, e.g. ``dual_fast``) take the image and an independent
     render of it at the same spp (``twin=``); both go through the same preprocessing.
 
     Maps: a map model's output is clipped to [0, 1] (the range of its SSIM target). The patch model
@@ -190,7 +190,7 @@ class Scorer:
                 raise ScorerInputError(f"{name} scores an image with its twin: pass twin= (predict.py --twin TWIN)")
             return None
         if not self.needs_twin:
-            raise ScorerInputError(f"{name} scores one image; a twin needs a two-buffer model (unet_fast_twin)")
+            raise ScorerInputError(f"{name} scores one image; a twin needs a two-buffer model (dual_fast)")
         batch, _ = _as_batch(twin)
         if batch.shape != shape:
             raise ScorerInputError(

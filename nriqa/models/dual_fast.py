@@ -1,0 +1,94 @@
+r"""The two-buffer scorer: the bias-corrected dual-buffer SSIM map plus a learned correction.
+
+A render loop holds two independent estimates of every pixel for free (the image and its half
+buffer, or two renders with different seeds). Their SSIM map, bias-corrected pixel by pixel,
+
+    D = 2 S_ab / (1 + S_ab),   S_ab = SSIM(tonemap(a), tonemap(b))
+
+already estimates SSIM(a, reference) well where its assumptions hold (zero-mean noise of equal
+variance in both buffers, a tone map that is locally linear; :mod:`nriqa.eval.baselines.dual_buffer`
+derives it). It fails where they break: dark renders whose samples are mostly zero (the tone map
+and the clip at 0 are far from linear there), clipped highlights, and a luminance term that is not 1.
+
+This model starts from ``D`` and learns only the correction: an ``fcnn_fast``-style trunk on 2x2
+pixel blocks sees the image ``a``, the buffers' difference ``a - b`` and ``D`` itself, and adds its
+output to ``D``. The last convolution starts at zero, so an untrained model *is* the corrected dual
+buffer, and training can only move it where the data say it is wrong. Output ``ReLU(D + delta)``.
+
+* in: ``(B, 6, H, W)``: the displayed image and its twin stacked on channels (the Scorer does this);
+* ``S_ab`` is clamped at 0 before the correction (SSIM can be negative; ``2S/(1+S)`` has a pole at -1);
+* receptive field: the 11x11 SSIM window (radius 5) under a trunk of ``n3x3`` 3x3 convolutions on
+  2x2 blocks (``2 * (2 n3x3 + 1)`` px): ``2 * (2 n3x3 + 1) + 10`` px, 24 for the default 3.
+
+The name follows Whittle's "dual buffer" and the model it extends (:mod:`nriqa.models.fcnn_fast`).
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+from nriqa.core.ssim import WINDOW, ssim_map
+from nriqa.models import init_keras_, register_model
+from nriqa.models.fcnn import conv_bn_relu
+
+__all__ = ["DualFast", "dual_fast", "corrected_dual_map"]
+
+# Image, image - twin, corrected dual-buffer map.
+_FEATURES = 3 + 3 + 1
+
+
+def corrected_dual_map(a: Tensor, b: Tensor) -> Tensor:
+    """``(B,3,H,W)`` x2 -> ``(B,1,H,W)``: ``2 S / (1 + S)`` of their SSIM map ``S`` clamped to [0, 1]."""
+    s = ssim_map(a, b).clamp(0.0, 1.0)
+    return 2 * s / (1 + s)
+
+
+class DualFast(nn.Module):
+    """Two-buffer SSIM-map model: ``(B,6,H,W)`` (image, twin) -> ``(B,1,H,W)`` >= 0, any H, W >= 6."""
+
+    output = "map"
+    align = 2
+    in_channels = 6
+
+    def __init__(self, width: int = 32, n3x3: int = 3, n1x1: int = 1):
+        super().__init__()
+        if n3x3 < 1:
+            raise ValueError(f"DualFast needs at least one 3x3 block, got n3x3={n3x3}")
+        s = self.align
+        layers: list[nn.Module] = [*conv_bn_relu(_FEATURES * s * s, width, 3)]
+        for _ in range(n3x3 - 1):
+            layers += conv_bn_relu(width, width, 3)
+        for _ in range(n1x1):
+            layers += conv_bn_relu(width, width, 1)
+        self.trunk = nn.Sequential(*layers)
+        self.head = nn.Conv2d(width, s * s, 1)
+        self.receptive_field = s * (2 * n3x3 + 1) + 2 * (WINDOW // 2)
+        # The SSIM window needs WINDOW // 2 + 1 pixels a side (reflect padding).
+        self.min_size = WINDOW // 2 + 1 + (WINDOW // 2 + 1) % s
+        init_keras_(self)
+        nn.init.zeros_(self.head.weight)  # untrained == the corrected dual buffer
+        self.to(memory_format=torch.channels_last)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``x``: ``(B, 6, H, W)``, the image then its twin; returns ``(B,1,H,W)``."""
+        if x.ndim != 4 or x.shape[1] != self.in_channels:
+            raise ValueError(f"dual_fast expects (B,6,H,W): the image and its twin, got {tuple(x.shape)}")
+        h, w = x.shape[-2:]
+        a, b = x[:, :3], x[:, 3:]
+        d = corrected_dual_map(a, b)
+        feats = torch.cat([a, a - b, d], dim=1)
+        s = self.align
+        ph, pw = -h % s, -w % s
+        if ph or pw:
+            feats = F.pad(feats, (0, pw, 0, ph))
+        y = self.trunk(F.pixel_unshuffle(feats, s).contiguous(memory_format=torch.channels_last))
+        delta = F.pixel_shuffle(self.head(y), s)[..., :h, :w]
+        return F.relu(d + delta).contiguous()
+
+
+@register_model
+def dual_fast(**kwargs) -> DualFast:
+    """Corrected dual-buffer map + a learned correction (:class:`DualFast`); image and twin in."""
+    return DualFast(**kwargs)
