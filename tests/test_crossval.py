@@ -89,3 +89,15 @@ def test_image_level_scores(synthetic_dataset):
         rows, stats = image_level(net.eval(), dm.val_pairs[:3], target, 32)
         assert [r["id"] for r in rows] == [p.record.id for p in dm.val_pairs[:3]]
         assert all(math.isfinite(r["predicted"]) for r in rows) and stats["n"] == 3
+
+
+def test_image_level_gives_a_two_buffer_model_its_twin(synthetic_dataset):
+    dm = NRIQADataModule(
+        synthetic_dataset, val_scene="beta", patch_size=32, target="ssim_map", val_patches=4, twins=True
+    )
+    dm.setup()
+    pairs = dm.val_pairs[:3]
+    rows, stats = image_level(create_model("dual_fast").eval(), pairs, "ssim_map", 32)
+    # untrained, dual_fast is the corrected dual buffer of the image and its twin
+    expected = [float((2 * s / (1 + s)).mean()) for s in (ssim_map(p.noisy[None], p.twin[None]) for p in pairs)]
+    assert [r["predicted"] for r in rows] == pytest.approx(expected, abs=1e-5) and stats["n"] == 3

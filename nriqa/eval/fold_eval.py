@@ -46,13 +46,15 @@ def true_image_score(pair: ImagePair, target: str) -> float:
     return float(compute_target(target, pair.noisy[None], pair.ref[None]).mean())
 
 
-def predicted_image_score(net: nn.Module, image: Tensor, patch_size: int) -> float:
+def predicted_image_score(net: nn.Module, image: Tensor, patch_size: int, twin: Tensor | None = None) -> float:
     """Mean-pooled prediction for a ``(3, H, W)`` LDR image, through :class:`nriqa.inference.scorer.Scorer`.
 
     Map models predict the whole map; the patch model scores a grid of ``patch_size`` windows
-    with stride ``patch_size`` (the last one moved in to touch the border).
+    with stride ``patch_size`` (the last one moved in to touch the border). A two-buffer model
+    also gets the image's ``twin`` (LDR like the image).
     """
-    return float(Scorer(net, stride=patch_size)(image, hdr=False).score)
+    scorer = Scorer(net, stride=patch_size)
+    return float(scorer(image, hdr=False, twin=twin if scorer.needs_twin else None).score)
 
 
 def image_level(
@@ -71,7 +73,7 @@ def image_level(
             "spp": p.record.spp,
             "role": p.record.role,
             "true": true_image_score(p, target),
-            "predicted": predicted_image_score(net, p.noisy, patch_size),
+            "predicted": predicted_image_score(net, p.noisy, patch_size, p.twin),
         }
         for p in pairs
     ]
