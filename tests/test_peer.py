@@ -1,12 +1,14 @@
-"""The variance-based peer (half-buffer placement and stop rule), the half film and its twin, and the
-Rater's twin for two-buffer scorers: on a synthetic renderer (Gaussian samples per pixel), plus one
+"""The variance-based peer (half-buffer placement and stop rule), the half film and its halves, and the
+Rater's halves for two-buffer scorers: on a synthetic renderer (Gaussian samples per pixel), plus one
 small Mitsuba run (llvm_ad_rgb)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
+from nriqa.core.ssim import ssim_map
 from nriqa.render import (
     Converged,
     HalfFilm,
@@ -18,9 +20,10 @@ from nriqa.render import (
     SppBudget,
     UnconvergedPixels,
     render_loop,
-    twin_image,
+    split_halves,
 )
 from nriqa.render.peer import unconverged_pixels
+from nriqa.render.rating import at_full_samples
 from nriqa.render.stop import Progress, StopRule
 
 SIZE = 16
@@ -173,23 +176,47 @@ def test_peer_is_deterministic_for_a_seed(scene):
 
 
 @pytest.mark.parametrize("n", [16, 17])
-def test_twin_differs_from_the_image_as_an_independent_render_would(n):
+def test_halves_are_the_even_and_the_odd_samples(n):
     rng = np.random.default_rng(n)
-    truth, sigma, pixels = 0.5, 0.2, 40000
-    samples = truth + sigma * rng.standard_normal((n, pixels, 1, 3))
-    image, half = samples.mean(axis=0), samples[0::2].mean(axis=0)
-    counts = np.full((pixels, 1), n)
-    twin = twin_image(image, half, counts, np.ceil(counts / 2))
-    var_image = np.var(image - truth)
-    assert var_image == pytest.approx(sigma**2 / n, rel=0.03)
-    assert np.var(twin - image) == pytest.approx(2 * var_image, rel=0.04)
-    assert abs(np.mean(twin - image)) < 0.01 * sigma
-    # An independent render at n samples: the same spread of the difference.
-    other = (truth + sigma * rng.standard_normal((n, pixels, 1, 3))).mean(axis=0)
-    assert np.var(twin - image) == pytest.approx(np.var(other - image), rel=0.05)
+    samples = 0.5 + 0.2 * rng.standard_normal((n, 50, 1, 3))
+    image, even = samples.mean(axis=0), samples[0::2].mean(axis=0)
+    counts = np.full((50, 1), n)
+    first, second, share = split_halves(image, even, counts, np.ceil(counts / 2))
+    np.testing.assert_allclose(first, even, rtol=1e-6)
+    np.testing.assert_allclose(second, samples[1::2].mean(axis=0), rtol=1e-5)
+    np.testing.assert_allclose(share, np.ceil(n / 2) / n)
+    # a pixel with one sample has no second half: it is its own, with the whole share
+    one = split_halves(image[:1], image[:1], np.ones((1, 1)), np.ones((1, 1)))
+    np.testing.assert_array_equal(one[1], one[0])
+    assert one[2][0, 0] == 1.0
 
 
-def test_half_film_keeps_the_even_samples_and_its_twins(scene):
+def test_at_full_samples_on_known_values():
+    q = np.array([0.0, 0.25, 0.5, 0.9, 1.0, 1.2, -0.1])
+    expected = [0, 0.4, 2 / 3, 1.8 / 1.9, 1, 1, 0]  # 2q / (1 + q) of q clipped to [0, 1]
+    np.testing.assert_allclose(at_full_samples(q, np.full(q.shape, 0.5)), expected, rtol=1e-6)
+    np.testing.assert_allclose(at_full_samples(q[:5], np.ones(5)), q[:5], rtol=1e-6)  # all the samples: unchanged
+
+
+def test_a_half_rated_against_the_other_carries_to_the_whole_image():
+    """SSIM(half, reference) carried to n samples matches SSIM(image, reference), on Gaussian noise."""
+    rng = np.random.default_rng(5)
+    size, n = 96, 16
+    clean = np.clip(0.5 + 0.15 * rng.standard_normal((size, size, 1)) * np.ones(3), 0, 1)
+    samples = clean + 0.3 * rng.standard_normal((n, size, size, 3))
+    image, first = samples.mean(0), samples[0::2].mean(0)
+
+    def ssim(x, y):
+        x, y = (torch.from_numpy(np.ascontiguousarray(a.transpose(2, 0, 1)))[None].float() for a in (x, y))
+        return ssim_map(x, y)[0, 0].numpy()
+
+    truth = float(ssim(image, clean).mean())
+    carried = float(at_full_samples(ssim(first, clean), np.full((size, size), 0.5)).mean())
+    assert float(ssim(first, clean).mean()) < truth - 0.03  # half the samples: worse
+    assert carried == pytest.approx(truth, abs=0.01)
+
+
+def test_half_film_keeps_the_even_samples_and_its_halves(scene):
     clean, sigma = scene
     film = HalfFilm(GaussianRenderer(clean, sigma), 4)
     plain = PixelFilm(GaussianRenderer(clean, sigma), 4)
@@ -200,10 +227,14 @@ def test_half_film_keeps_the_even_samples_and_its_twins(scene):
     np.testing.assert_array_equal(HalfFilm.even_count(np.array([0, 1, 2, 3, 6])), [0, 1, 1, 2, 3])
     left = film.half[:, : SIZE // 2]
     np.testing.assert_allclose(left, clean[:, : SIZE // 2], atol=1e-6)  # noise-free: A = I = clean
-    assert film.twin().shape == (SIZE, SIZE, 3) and film.twin().dtype == np.float32
+    a, b, share = film.halves()
+    assert a.shape == b.shape == (SIZE, SIZE, 3) and a.dtype == b.dtype == np.float32 and share.shape == (SIZE, SIZE)
+    whole = share[..., None] * a + (1 - share[..., None]) * b  # the halves weighted by their samples
+    np.testing.assert_allclose(whole, film.image, atol=1e-5)
     first = HalfFilm(GaussianRenderer(clean, sigma), 9)
     first.add_uniform(8)
-    np.testing.assert_allclose(first.step_twin(), first.twin(), rtol=1e-6)  # one step: its own samples are all
+    for step, whole in zip(first.step_halves(), first.halves()):  # one step: its own samples are all
+        np.testing.assert_allclose(step, whole, rtol=1e-6, atol=1e-6)
 
 
 class TwinScorer:
@@ -234,19 +265,20 @@ def _twin_run(scene, probes):
 
 def test_rater_passes_the_image_twin_to_a_two_buffer_scorer(scene):
     film, scorer, _ = _twin_run(scene, Probes(map_spp=None))
-    image, twin = scorer.twins[-1]  # the last row is rated: the image at the end, and its twin
-    np.testing.assert_array_equal(image, film.image)
-    np.testing.assert_array_equal(twin, film.twin())
+    image, twin = scorer.twins[-1]  # the last row is rated: the image's halves at the end
+    first, second, _ = film.halves()
+    np.testing.assert_array_equal(image, first)
+    np.testing.assert_array_equal(twin, second)
 
 
 def test_rater_passes_a_probes_own_twin(scene):
     _, scorer, log = _twin_run(scene, Probes(map_spp=16, probe_spp=8))
     probes = [(image, twin) for (image, twin), r in zip(scorer.twins, [r for r in log if r["scored"]]) if r["spp"] > 16]
     assert probes
-    # A probe is one 8-spp step: its twin comes from its own half buffer, not the film's (many more samples).
+    # A probe is one 8-spp step: its halves come from its own samples (4 each), not the film's (many more).
     for image, twin in probes:
         spread = float(np.std((twin - image)[:, SIZE // 2 :]))
-        assert spread == pytest.approx(0.3 * np.sqrt(2 / 8), rel=0.25)
+        assert spread == pytest.approx(0.3 * np.sqrt(2 / 4), rel=0.25)
 
 
 def test_a_two_buffer_scorer_needs_a_film_with_a_half_buffer(scene):

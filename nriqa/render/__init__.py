@@ -35,7 +35,7 @@ _EXPORTS = {
     "ImageFilm": "film",
     "PixelFilm": "film",
     "HalfFilm": "film",
-    "twin_image": "film",
+    "split_halves": "film",
     "render_peer": "peer",
     "UnconvergedPixels": "peer",
     "Converged": "peer",

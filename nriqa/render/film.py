@@ -20,7 +20,7 @@ import numpy as np
 from nriqa.render.error_model import running_mean
 from nriqa.render.pixel_renderer import PixelRenderer
 
-__all__ = ["WARMUP_SEED", "Film", "HalfFilm", "ImageFilm", "PixelFilm", "load_scene", "render_spp", "twin_image"]
+__all__ = ["WARMUP_SEED", "Film", "HalfFilm", "ImageFilm", "PixelFilm", "load_scene", "render_spp", "split_halves"]
 
 # Seeds of the discarded warm-up renders, apart from any a loop's own renders use.
 WARMUP_SEED = 2**31 - 1
@@ -142,34 +142,35 @@ class PixelFilm:
         return (self.add(np.full(self.count.shape, spp)) / spp).astype(np.float32)
 
 
-def twin_image(image: np.ndarray, half: np.ndarray, n: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """A stand-in for an independent render at the same samples, from an image and its half buffer.
+def split_halves(
+    image: np.ndarray, half: np.ndarray, n: np.ndarray, m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two independent half images behind an image and its half buffer, for a two-buffer scorer.
 
     ``image`` ``I`` is the mean of a pixel's ``n`` samples, ``half`` ``A`` the mean of ``m`` of them
-    (``(H, W, 3)``; ``n``, ``m`` ``(H, W)``); ``B``, the mean of the other ``n - m``, is independent
-    of ``A``. With per-sample variance ``s2``::
+    (``(H, W, 3)``; ``n``, ``m`` ``(H, W)``). The other ``n - m`` samples have the mean
+    ``B = (n I - m A) / (n - m)``, independent of ``A``: ``(A, B)`` is a true pair of independent
+    renders, each with about half the samples of ``I``, which is what a two-buffer scorer learnt
+    from (an image and an independent twin at the same spp). Its rating of ``A`` is carried to ``I``'s
+    ``n`` samples by :func:`nriqa.render.rating.at_full_samples` with ``share = m / n``.
 
-        I - truth has variance s2 / n
-        A - I = (n - m) (A - B) / n has variance s2 (n - m) / (n m)   (s2 / n for m = n / 2)
-        and is uncorrelated with I (Cov(A - B, m A + (n - m) B) = s2 - s2 = 0)
+    (No single stand-in image ``T`` for an independent render of ``n`` samples exists: any function
+    of ``I`` and ``A`` that gives ``T - I`` the right spread leaves ``T`` correlated with ``I`` in
+    the wrong way, and SSIM(I, T) then reads a noisy image as far cleaner than it is.)
 
-    An independent render ``I'`` at ``n`` samples has ``Var(I' - I) = 2 s2 / n``. So the twin
-    ``T = I + c (A - I)`` with ``c = sqrt(2 m / (n - m))`` -- ``sqrt(2)`` for even halves,
-    ``T = I + sqrt(2) (A - I)`` -- has ``T - I`` of mean 0 and variance ``2 s2 / n``, like ``I' - I``:
-    the difference a two-buffer (dual-buffer) error estimate reads. It is not an independent render
-    in every respect: ``T`` itself varies as ``3 s2 / n`` about the truth (``I'``: ``s2 / n``), and
-    ``T - I`` is uncorrelated with ``I`` where ``I' - I`` is not (covariance ``-s2 / n``); no
-    function of ``I`` and ``A`` alone can match both without the truth. Pixels with a single sample
-    (no second half) get ``T = I``.
+    Pixels with a single sample (no second half) get ``B = A`` and ``share = 1``.
 
-    Returns ``(H, W, 3)`` float32.
+    Returns:
+        ``(A, B, share)``: ``(H, W, 3)`` float32 twice and ``(H, W)`` float64.
     """
     n = np.asarray(n, dtype=np.float64)
     m = np.asarray(m, dtype=np.float64)
     rest = n - m
-    scale = np.sqrt(np.divide(2.0 * m, rest, out=np.zeros_like(n), where=rest > 0))[..., None]
-    image = np.asarray(image, dtype=np.float64)
-    return (image + scale * (np.asarray(half, dtype=np.float64) - image)).astype(np.float32)
+    a = np.asarray(half, dtype=np.float64)
+    total = np.asarray(image, dtype=np.float64) * n[..., None] - a * m[..., None]
+    b = np.where((rest > 0)[..., None], total / np.maximum(rest, 1.0)[..., None], a)
+    share = np.where(rest > 0, m / np.maximum(n, 1.0), 1.0)
+    return a.astype(np.float32), b.astype(np.float32), share
 
 
 class HalfFilm(PixelFilm):
@@ -207,18 +208,18 @@ class HalfFilm(PixelFilm):
         self.half = half.astype(np.float32)
         return sums
 
-    def twin(self) -> np.ndarray:
-        """The image's twin, ``(H, W, 3)`` float32: :func:`twin_image` of ``image`` and ``half``."""
+    def halves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The image's two independent halves and the first one's share of the samples: :func:`split_halves`."""
         if self.image is None:
-            raise ValueError("the film has no samples yet: no twin")
-        return twin_image(self.image, self.half, self.count, self.even_count(self.count))
+            raise ValueError("the film has no samples yet: no halves")
+        return split_halves(self.image, self.half, self.count, self.even_count(self.count))
 
-    def step_twin(self) -> np.ndarray:
-        """The twin of the last step's own mean image (what :meth:`add_uniform` returned), from its own samples."""
+    def step_halves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`halves` of the last step's own samples (the image :meth:`add_uniform` returned)."""
         if self._step is None:
-            raise ValueError("the film has no samples yet: no twin")
+            raise ValueError("the film has no samples yet: no halves")
         sums, even, done, counts = self._step
         m = self.even_count(done + counts) - self.even_count(done)
         image = sums / np.maximum(counts, 1.0)[..., None]
         half = even / np.maximum(m, 1.0)[..., None]
-        return twin_image(image, half, counts, m)
+        return split_halves(image, half, counts, m)

@@ -117,7 +117,7 @@ def render_loop(
         stops: the stop rules, in order (:mod:`nriqa.render.stop`); at least one.
         scorer: the :class:`~nriqa.inference.scorer.Scorer` (or anything called like one) whose
             maps place the samples and whose score the rules read; ``None``: nothing is scored.
-            A two-buffer scorer (``needs_twin``) also gets the image's twin: the film must keep a
+            A two-buffer scorer (``needs_twin``) rates the image's two halves: the film must keep a
             half buffer (:class:`~nriqa.render.film.HalfFilm`).
         schedule: the first pass's and the steps' samples per pixel (default: ``Schedule()``).
         probes: when the scorer rates a probe instead of the image (default: ``Probes()``).
@@ -138,7 +138,7 @@ def render_loop(
     check_overhead(max_overhead)
     if not stops:
         raise ValueError("render_loop needs at least one stop rule")
-    if needs_twin(scorer) and not hasattr(film, "twin"):
+    if needs_twin(scorer) and not hasattr(film, "halves"):
         raise ValueError(
             f"the scorer rates an image with its twin, and {type(film).__name__} keeps no half buffer: "
             "use a HalfFilm (per pixel, llvm_ad_rgb)"
@@ -196,7 +196,7 @@ def render_until(
         scorer: the :class:`~nriqa.inference.scorer.Scorer`; ``None`` renders uniformly without scoring
             (the baseline: it runs until the time budget or ``max_spp``). A two-buffer scorer
             (``needs_twin``) renders through a :class:`~nriqa.render.film.HalfFilm` (per-pixel
-            renderer, JIT variants), whose half buffer gives the twin it rates with the image.
+            renderer, JIT variants), whose half buffer splits the image into the two halves it rates.
         target_score: predicted pooled score to stop at (``None``: never stop early).
         time_budget_s: wall-clock budget in seconds for rendering plus scoring.
         spp_per_step: samples per pixel of the first step, and the least of any but the last.
@@ -274,7 +274,7 @@ def render_adaptive(
             pixel only): every step spread evenly and nothing scored, i.e. uniform progressive
             rendering through the same renderer and steps, the control for what placement gains.
             A two-buffer scorer (``needs_twin``; per pixel only) renders into a
-            :class:`~nriqa.render.film.HalfFilm`, whose half buffer gives the twin.
+            :class:`~nriqa.render.film.HalfFilm`, whose half buffer gives the two halves.
         total_spp: budget in mean samples per pixel.
         time_budget_s: budget in seconds (render + scoring).
         initial_spp, spp_per_step, growth: as for :class:`~nriqa.render.clock.Schedule` (per tile,

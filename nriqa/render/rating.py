@@ -7,9 +7,11 @@ probe: a fresh uniform step of ``probe_spp`` samples, rated alone and folded int
 any other samples; the image's predicted score is then the error model's at its counts
 (:class:`~nriqa.render.error_model.ErrorModel`), updated at every step.
 
-A two-buffer scorer (``needs_twin`` true) rates an image together with its twin: the Rater passes
-``twin=film.twin()`` for the image and ``twin=film.step_twin()`` for a probe (a film that keeps a
-half buffer: :class:`~nriqa.render.film.HalfFilm`).
+A two-buffer scorer (``needs_twin`` true) rates an image together with an independent twin. A loop
+has no independent render of its image, but its half buffer splits the image's samples into two
+independent halves (:meth:`~nriqa.render.film.HalfFilm.halves`; for a probe,
+:meth:`~nriqa.render.film.HalfFilm.step_halves`): the scorer rates the first half with the second as
+its twin, and :func:`at_full_samples` carries that map to the whole image's samples.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from nriqa.render.clock import Clock
 from nriqa.render.error_model import ErrorModel
 from nriqa.render.film import Film
 
-__all__ = ["Probes", "Rater", "needs_twin", "with_twin"]
+__all__ = ["HalvesRating", "Probes", "Rater", "at_full_samples", "needs_twin", "rate_halves", "with_twin"]
 
 
 def needs_twin(scorer) -> bool:
@@ -34,6 +36,44 @@ def needs_twin(scorer) -> bool:
 def with_twin(scorer, twin: np.ndarray | None):
     """``scorer`` called with ``twin=twin`` (``scorer`` itself when ``twin`` is ``None``)."""
     return scorer if twin is None else functools.partial(scorer, twin=twin)
+
+
+def at_full_samples(quality: np.ndarray, share: np.ndarray) -> np.ndarray:
+    r"""Per-pixel SSIM of an image from that of a subset of its samples, ``share`` of them.
+
+    In one SSIM window, with local reference variance ``v`` and noise variance ``y`` (as in
+    :mod:`nriqa.eval.baselines.dual_buffer`), ``SSIM ~ X / (X + y)`` with ``X = 2 v + C2``, and the
+    noise variance falls as 1 / samples. A subset with ``share`` ``k`` of the samples has
+    ``y / k``: from its rating ``q = X / (X + y / k)``, ``y / X = k (1 / q - 1)``, so the whole image
+    rates ``q / (q + (1 - q) k)`` (``2 q / (1 + q)`` for ``k = 1/2``, the dual-buffer correction).
+    ``quality`` is clipped to [0, 1] first; ``k = 1`` leaves it as it is.
+    """
+    q = np.clip(np.asarray(quality, dtype=np.float64), 0.0, 1.0)
+    k = np.asarray(share, dtype=np.float64)
+    den = q + (1.0 - q) * k
+    return np.divide(q, den, out=np.zeros_like(q), where=den > 0).astype(np.float32)
+
+
+@dataclasses.dataclass(frozen=True)
+class HalvesRating:
+    """A two-buffer scorer's map of a whole image, rated from its halves: ``map`` ``(H, W)``, ``score`` its mean."""
+
+    map: np.ndarray
+    score: float
+
+
+def rate_halves(scorer, first: np.ndarray, *, second: np.ndarray, share: np.ndarray, **kwargs) -> HalvesRating:
+    """Rate ``first`` with ``second`` as its twin, carried to the whole image by :func:`at_full_samples`.
+
+    ``kwargs`` (e.g. ``hdr=True``) go to the scorer.
+    """
+    qmap = at_full_samples(scorer(first, twin=second, **kwargs).map, share)
+    return HalvesRating(qmap, float(qmap.mean()))
+
+
+def halves_scorer(scorer, second: np.ndarray, share: np.ndarray):
+    """``scorer`` as a one-argument call on the first half: :func:`rate_halves` with ``second`` and ``share``."""
+    return functools.partial(rate_halves, scorer, second=second, share=share)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,15 +135,22 @@ class Rater:
         """
         beyond = self.beyond(spp_before if self.probes.grace_step else film.spp)
         if probe is not None:
-            twin = film.step_twin() if self.needs_twin else None
-            self.model.add(self.clock.scored(with_twin(self.scorer, twin), probe[0]).map, probe[1])
+            if self.needs_twin:
+                first, second, share = film.step_halves()
+                rating = self.clock.scored(halves_scorer(self.scorer, second, share), first)
+            else:
+                rating = self.clock.scored(self.scorer, probe[0])
+            self.model.add(rating.map, probe[1])
             scored = True
         else:
             first = self.needs_map and self.model is not None and self.model.noise is None
             scored = self.scorer is not None and (first or (not beyond and (self.clock.score_due() or final)))
             if scored:
-                twin = film.twin() if self.needs_twin else None
-                result = self.clock.scored(with_twin(self.scorer, twin), film.image)
+                if self.needs_twin:
+                    first, second, share = film.halves()
+                    result = self.clock.scored(halves_scorer(self.scorer, second, share), first)
+                else:
+                    result = self.clock.scored(self.scorer, film.image)
                 self.predicted = result.score
                 self.model.add(result.map, film.count.copy())
         if beyond and self.model.noise is not None:
