@@ -155,16 +155,19 @@ def memory(args) -> str:
 
 
 def find_scorers(args) -> dict[str, Scorer]:
+    """The single-image scorers of the accuracy section (two-buffer ones need twins it does not load)."""
     from nriqa.inference.pretrained import list_pretrained
 
     if not args.checkpoint_dir:
-        return {f"shipped:{n}": Scorer.from_pretrained(n) for n in list_pretrained()}
-    # Only the given checkpoints: the shipped weights learnt every scene, the held-out one too, and
-    # would not be compared on equal terms (nor be "the best" the others are measured against).
-    return {
-        str(ckpt.relative_to(args.checkpoint_dir)): Scorer.from_checkpoint(ckpt)
-        for ckpt in sorted(Path(args.checkpoint_dir).rglob("*.ckpt"))
-    }
+        found = {f"shipped:{n}": Scorer.from_pretrained(n) for n in list_pretrained()}
+    else:
+        # Only the given checkpoints: the shipped weights learnt every scene, the held-out one too, and
+        # would not be compared on equal terms (nor be "the best" the others are measured against).
+        found = {
+            str(ckpt.relative_to(args.checkpoint_dir)): Scorer.from_checkpoint(ckpt)
+            for ckpt in sorted(Path(args.checkpoint_dir).rglob("*.ckpt"))
+        }
+    return {name: scorer for name, scorer in found.items() if not scorer.needs_twin}
 
 
 def accuracy(args) -> str:
