@@ -91,3 +91,12 @@ def ssim_map(x: Tensor, y: Tensor) -> Tensor:
     num = (2 * mx * my + c1) * (2 * cov + c2)
     den = (mx * mx + my * my + c1) * (vx + vy + c2)
     return (num / den).clamp(0.0, 1.0)
+
+
+def correct_dual_buffer(s_ab: Tensor) -> Tensor:
+    """Per-pixel estimate of SSIM(a, reference) from the SSIM map of two independent renders ``a``, ``b``.
+
+    ``2 S / (1 + S)``: their disagreement is twice the noise of one against the reference (derived in
+    :mod:`nriqa.eval.baselines.dual_buffer`). ``s_ab`` as :func:`ssim_map` gives it, in [0, 1].
+    """
+    return 2 * s_ab / (1 + s_ab)

@@ -16,7 +16,8 @@ output to ``D``. The last convolution starts at zero, so an untrained model *is*
 buffer, and training can only move it where the data say it is wrong. Output ``ReLU(D + delta)``.
 
 * in: ``(B, 6, H, W)``: the displayed image and its twin stacked on channels (the Scorer does this);
-* ``S_ab`` is clamped at 0 before the correction (SSIM can be negative; ``2S/(1+S)`` has a pole at -1);
+* ``S_ab`` is :func:`nriqa.core.ssim.ssim_map`'s, in [0, 1], and ``D`` is
+  :func:`nriqa.core.ssim.correct_dual_buffer` of it, the ``dual_buffer_corrected`` baseline's map;
 * receptive field: the 11x11 SSIM window (radius 5) under a trunk of ``n3x3`` 3x3 convolutions on
   2x2 blocks (``2 * (2 n3x3 + 1)`` px): ``2 * (2 n3x3 + 1) + 10`` px, 24 for the default 3.
 
@@ -29,20 +30,14 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from nriqa.core.ssim import WINDOW, ssim_map
+from nriqa.core.ssim import WINDOW, correct_dual_buffer, ssim_map
 from nriqa.models import init_keras_, register_model
 from nriqa.models.fcnn import conv_bn_relu
 
-__all__ = ["DualFast", "dual_fast", "corrected_dual_map"]
+__all__ = ["DualFast", "dual_fast"]
 
 # Image, image - twin, corrected dual-buffer map.
 _FEATURES = 3 + 3 + 1
-
-
-def corrected_dual_map(a: Tensor, b: Tensor) -> Tensor:
-    """``(B,3,H,W)`` x2 -> ``(B,1,H,W)``: ``2 S / (1 + S)`` of their SSIM map ``S`` clamped to [0, 1]."""
-    s = ssim_map(a, b).clamp(0.0, 1.0)
-    return 2 * s / (1 + s)
 
 
 class DualFast(nn.Module):
@@ -77,7 +72,7 @@ class DualFast(nn.Module):
             raise ValueError(f"dual_fast expects (B,6,H,W): the image and its twin, got {tuple(x.shape)}")
         h, w = x.shape[-2:]
         a, b = x[:, :3], x[:, 3:]
-        d = corrected_dual_map(a, b)
+        d = correct_dual_buffer(ssim_map(a, b))
         feats = torch.cat([a, a - b, d], dim=1)
         s = self.align
         ph, pw = -h % s, -w % s

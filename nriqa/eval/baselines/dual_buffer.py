@@ -35,18 +35,13 @@ import math
 
 from torch import Tensor
 
-from nriqa.core.ssim import ssim_map
+from nriqa.core.ssim import correct_dual_buffer, ssim_map
 from nriqa.eval.baselines import Item, Prediction, Predictor
 
 
 def dual_buffer_map(a: Tensor, b: Tensor) -> Tensor:
     """SSIM map of two tone-mapped independent renders ``(3, H, W)`` of the same image: ``(H, W)``."""
     return ssim_map(a[None], b[None])[0, 0]
-
-
-def correct_dual_buffer(s_ab: Tensor) -> Tensor:
-    """Per-pixel estimate of SSIM(a, reference) from SSIM(a, b): ``2 S / (1 + S)`` (see the module docstring)."""
-    return 2 * s_ab / (1 + s_ab)
 
 
 class DualBuffer(Predictor):
