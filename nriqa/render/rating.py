@@ -135,27 +135,26 @@ class Rater:
         """
         beyond = self.beyond(spp_before if self.probes.grace_step else film.spp)
         if probe is not None:
-            if self.needs_twin:
-                first, second, share = film.step_halves()
-                rating = self.clock.scored(halves_scorer(self.scorer, second, share), first)
-            else:
-                rating = self.clock.scored(self.scorer, probe[0])
-            self.model.add(rating.map, probe[1])
+            self.model.add(self._scored(probe[0], lambda: film.step_halves()).map, probe[1])
             scored = True
         else:
             first = self.needs_map and self.model is not None and self.model.noise is None
             scored = self.scorer is not None and (first or (not beyond and (self.clock.score_due() or final)))
             if scored:
-                if self.needs_twin:
-                    first, second, share = film.halves()
-                    result = self.clock.scored(halves_scorer(self.scorer, second, share), first)
-                else:
-                    result = self.clock.scored(self.scorer, film.image)
+                result = self._scored(film.image, lambda: film.halves())
                 self.predicted = result.score
                 self.model.add(result.map, film.count.copy())
         if beyond and self.model.noise is not None:
             self.predicted = self.model.predict(film.count)
         return scored, scored or beyond
+
+    def _scored(self, image: np.ndarray, halves):
+        """The scorer's rating of ``image``, timed; a two-buffer scorer rates ``halves()`` instead
+        (called only then: a film without a half buffer has none)."""
+        if not self.needs_twin:
+            return self.clock.scored(self.scorer, image)
+        first, second, share = halves()
+        return self.clock.scored(halves_scorer(self.scorer, second, share), first)
 
     def probe_size(self, film: Film) -> int:
         """Samples per pixel of a probe: ``probe_spp`` in whole multiples of the film's ``quantum``."""
