@@ -32,7 +32,7 @@ from torch import Tensor, nn
 
 from nriqa.core.ssim import WINDOW, correct_dual_buffer, ssim_map
 from nriqa.models import init_keras_, register_model
-from nriqa.models.fcnn import conv_bn_relu
+from nriqa.models.fcnn import block_trunk
 
 __all__ = ["DualFast", "dual_fast"]
 
@@ -52,12 +52,7 @@ class DualFast(nn.Module):
         if n3x3 < 1:
             raise ValueError(f"DualFast needs at least one 3x3 block, got n3x3={n3x3}")
         s = self.align
-        layers: list[nn.Module] = [*conv_bn_relu(_FEATURES * s * s, width, 3)]
-        for _ in range(n3x3 - 1):
-            layers += conv_bn_relu(width, width, 3)
-        for _ in range(n1x1):
-            layers += conv_bn_relu(width, width, 1)
-        self.trunk = nn.Sequential(*layers)
+        self.trunk = nn.Sequential(*block_trunk(_FEATURES * s * s, width, n3x3, n1x1))
         self.head = nn.Conv2d(width, s * s, 1)
         self.receptive_field = s * (2 * n3x3 + 1) + 2 * (WINDOW // 2)
         # The SSIM window needs WINDOW // 2 + 1 pixels a side (reflect padding).

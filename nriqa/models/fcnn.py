@@ -35,6 +35,16 @@ def conv_bn_relu(cin: int, cout: int, kernel: int) -> list[nn.Module]:
     ]
 
 
+def block_trunk(cin: int, width: int, n3x3: int, n1x1: int) -> list[nn.Module]:
+    """``n3x3`` Conv3x3(``width``)-BN-ReLU blocks (the first from ``cin`` channels), then ``n1x1`` Conv1x1 ones."""
+    layers = conv_bn_relu(cin, width, 3)
+    for _ in range(n3x3 - 1):
+        layers += conv_bn_relu(width, width, 3)
+    for _ in range(n1x1):
+        layers += conv_bn_relu(width, width, 1)
+    return layers
+
+
 class FCNN(nn.Module):
     """Thesis ch. 5, experiment II FCNN: ``(B,3,H,W)`` LDR in [0,1] -> ``(B,1,H,W)`` >= 0.
 

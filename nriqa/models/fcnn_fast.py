@@ -25,7 +25,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from nriqa.models import init_keras_, register_model
-from nriqa.models.fcnn import check_image_batch, conv_bn_relu
+from nriqa.models.fcnn import block_trunk, check_image_batch
 
 __all__ = ["FCNNFast", "fcnn_fast"]
 
@@ -45,13 +45,13 @@ class FCNNFast(nn.Module):
         if n3x3 < 1:
             raise ValueError(f"FCNNFast needs at least one 3x3 block, got n3x3={n3x3}")
         s = self.align
-        layers: list[nn.Module] = [nn.PixelUnshuffle(s), *conv_bn_relu(3 * s * s, width, 3)]
-        for _ in range(n3x3 - 1):
-            layers += conv_bn_relu(width, width, 3)
-        for _ in range(n1x1):
-            layers += conv_bn_relu(width, width, 1)
-        layers += [nn.Conv2d(width, s * s, 1), nn.PixelShuffle(s), nn.ReLU()]
-        self.net = nn.Sequential(*layers)
+        self.net = nn.Sequential(
+            nn.PixelUnshuffle(s),
+            *block_trunk(3 * s * s, width, n3x3, n1x1),
+            nn.Conv2d(width, s * s, 1),
+            nn.PixelShuffle(s),
+            nn.ReLU(),
+        )
         self.receptive_field = s * (2 * n3x3 + 1)
         init_keras_(self)
         # oneDNN's CPU convolutions run faster on NHWC than NCHW at these widths.
