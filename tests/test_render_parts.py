@@ -22,7 +22,9 @@ from nriqa.render import (
     render_loop,
     true_ssim,
 )
-from nriqa.render.stop import MaxSpp, Progress, budgets
+from nriqa.render.placement import UniformSteps
+from nriqa.render.rating import at_full_samples, spp_to_reach
+from nriqa.render.stop import MaxSpp, Progress, budgets, spp_to_go
 
 SIZE = 16
 
@@ -180,6 +182,58 @@ def test_target_score_reads_the_direction_and_freshness():
     assert not rule.reached(Progress(None, {"predicted": 0.05}, False, higher_is_better=False))  # stale
     assert not rule.reached(Progress(None, {"predicted": 0.05}, True, higher_is_better=True))
     assert not rule.reached(Progress(None, {"predicted": None}, True, higher_is_better=True))
+
+
+def test_spp_to_reach_inverts_the_samples_law():
+    # SSIM: 0.8 at 10 spp reaches 0.9 at 10 * 0.9 * 0.2 / (0.8 * 0.1) = 22.5 spp ...
+    assert spp_to_reach(0.8, 10, 0.9) == pytest.approx(22.5)
+    # ... which is at_full_samples read the other way: 10 of 22.5 samples rate 0.8, all of them 0.9.
+    assert float(at_full_samples(np.float32(0.8), 10 / 22.5)) == pytest.approx(0.9, abs=1e-6)
+    assert spp_to_reach(0.95, 40, 0.9) < 40  # already past: fewer samples than it has
+    assert spp_to_reach(0.02, 16, 0.01, higher_is_better=False) == pytest.approx(64)  # MAE ~ 1/sqrt(spp)
+    for score, target, hib in ((0.5, 1.0, True), (0.5, 0.0, True), (float("nan"), 0.9, True), (0.1, 0.0, False)):
+        assert spp_to_reach(score, 8, target, hib) is None
+    assert np.isfinite(spp_to_reach(0.0, 8, 0.9)) and np.isfinite(spp_to_reach(1.0, 8, 0.9))  # clipped, not 1/0
+
+
+def test_target_score_expects_the_samples_to_its_target():
+    class Film:
+        spp = 10.0
+
+    rule = TargetScore(0.9)
+    assert rule.spp_to_go(Progress(Film(), {"predicted": 0.8}, True, True)) == pytest.approx(12.5)
+    assert rule.spp_to_go(Progress(Film(), {"predicted": 0.8}, False, True)) is None  # stale: no new estimate
+    assert rule.spp_to_go(Progress(Film(), {"predicted": 0.95}, True, True)) == 0.0
+    assert rule.spp_to_go(Progress(Film(), {"predicted": None}, True, True)) is None
+    # the fewest over the rules that estimate (0.85: 10 * 0.85 * 0.2 / (0.8 * 0.15) - 10 spp)
+    progress = Progress(Film(), {"predicted": 0.8}, True, True)
+    assert spp_to_go([TimeBudget(5.0), rule, TargetScore(0.85)], progress) == pytest.approx(4.1667, abs=1e-4)
+    assert spp_to_go([TimeBudget(5.0)], progress) is None
+
+
+def test_render_loop_lands_on_the_target_instead_of_stepping_past(scene):
+    """Grown steps (a quarter of the samples done) step past a target window; cut to where the
+    prediction should reach the target, the run ends just past it, in smaller last steps."""
+    clean, sigma = scene
+    oracle = ReferenceScorer(clean)
+    target = 0.97
+    ends = []
+    for seed in range(4):
+        _, log = render_loop(
+            NoiseFilm(clean, sigma, seed),
+            UniformSteps(),
+            [TargetScore(target), SppBudget(4000)],
+            oracle,
+            reference=clean,
+            schedule=Schedule(4, 1, 0.25),
+            max_overhead=None,
+            warmup=False,
+        )
+        assert log[-1]["stop"] == "target" and target <= log[-1]["true"]
+        grown = 0.25 * log[-2]["spp"]
+        assert log[-1]["spp"] - log[-2]["spp"] < grown  # the last step was cut, not grown
+        ends.append(log[-1]["true"])
+    assert max(ends) - target < 0.003, ends
 
 
 @pytest.mark.parametrize(

@@ -49,6 +49,7 @@ from nriqa.render.stop import (
     TimeBudget,
     budgets,
     first_reached,
+    spp_to_go,
 )
 from nriqa.render.tiles import TileFilm, TileRefinement
 
@@ -73,10 +74,17 @@ def _warm_up(film: Film, placement: Placement, scorer, schedule: Schedule) -> tu
 
 
 def _step(
-    film: Film, placement: Placement, rater: Rater, scored: bool, schedule: Schedule, stops: list[StopRule]
+    film: Film,
+    placement: Placement,
+    rater: Rater,
+    scored: bool,
+    schedule: Schedule,
+    stops: list[StopRule],
+    to_go: float | None = None,
 ) -> tuple[np.ndarray, int] | None:
     """Render the next step into ``film``: a probe when one is due and fits the budget of ``stops``
-    (returned as ``(image, spp)``, for the scorer to rate), else the placement's step (``None``)."""
+    (returned as ``(image, spp)``, for the scorer to rate), else the placement's step (``None``),
+    cut to ``to_go`` samples per pixel (what the rules expect the run to need; at least a least step)."""
     done, pixels, clock = film.spp, film.count.size, rater.clock
     seconds, spp = budgets(stops)
     left = None if spp is None else spp - done
@@ -84,6 +92,9 @@ def _step(
     # A probe whenever the budget has room for one, however small the grown steps are.
     if rater.probe_due(film, scored) and next_step(done, probe_spp, 0.0, clock, seconds, left, pixels) >= probe_spp:
         return film.add_uniform(probe_spp), probe_spp
+    if to_go is not None:
+        to_go = max(to_go, schedule.spp_per_step)
+        left = to_go if left is None else min(left, to_go)
     placement.step(
         film, next_step(done, schedule.spp_per_step, schedule.growth, clock, seconds, left, pixels), rater.model
     )
@@ -108,7 +119,8 @@ def render_loop(
     :mod:`nriqa.render.rating`), when scoring is due; a row goes into the log; the first stop
     rule reached ends the run. Otherwise the next step is a probe, if one is due and fits the
     budget, or the placement's step of ``next_step`` mean samples per pixel, sized by
-    ``schedule`` and the rules' budgets.
+    ``schedule`` and the rules' budgets, and cut to end where the rules expect the run to end
+    (``spp_to_go``, e.g. where the prediction should reach a target score).
 
     Args:
         film: where the samples go (:class:`~nriqa.render.film.ImageFilm`, ``PixelFilm``,
@@ -149,19 +161,24 @@ def render_loop(
     rater = Rater(scorer, probes, clock, placement.needs_map)
     with clock.rendering():
         film.add_uniform(schedule.initial_spp)
-    probe, spp_before = None, 0.0
+    probe, spp_before, aim = None, 0.0, None
     while True:
         scored, fresh = rater.rate(film, probe, spp_before, any(rule.final(film) for rule in stops))
         row = clock.row(film.image, film.count, rater.predicted, scored)
-        stop = first_reached(stops, Progress(film, row, fresh, rater.higher_is_better))
+        progress = Progress(film, row, fresh, rater.higher_is_better)
+        stop = first_reached(stops, progress)
         if stop is not None:
             row["stop"] = stop.name
             if film.log_counts:
                 row["spp_map"] = film.count
             return film.image, clock.log
         spp_before = film.spp
+        to_go = spp_to_go(stops, progress)
+        if to_go is not None:  # where the rules expect to end; kept until a fresh prediction moves it
+            aim = film.spp + to_go
+        to_go = None if aim is None or aim <= film.spp else aim - film.spp
         with clock.rendering():
-            probe = _step(film, placement, rater, scored, schedule, stops)
+            probe = _step(film, placement, rater, scored, schedule, stops, to_go)
 
 
 def render_until(
@@ -189,7 +206,9 @@ def render_until(
     that passes ``map_spp`` is still rated on the image). The loop stops at the first fresh
     prediction that reaches the target (``>=`` for SSIM, ``<=`` for the patch model's MAE), when
     the time budget (render + scoring seconds) is spent, or at ``max_spp`` (whose last step is
-    always rated).
+    always rated). Near the target, steps are cut to where the latest prediction should reach it
+    (:class:`~nriqa.render.stop.TargetScore`), so the run lands on the target rather than a grown
+    step past it.
 
     Args:
         scene: a Mitsuba scene dict (with film and sampler) or a loaded ``mi.Scene``.

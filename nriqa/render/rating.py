@@ -25,7 +25,16 @@ from nriqa.render.clock import Clock
 from nriqa.render.error_model import ErrorModel
 from nriqa.render.film import Film
 
-__all__ = ["HalvesRating", "Probes", "Rater", "at_full_samples", "needs_twin", "rate_halves", "with_twin"]
+__all__ = [
+    "HalvesRating",
+    "Probes",
+    "Rater",
+    "at_full_samples",
+    "needs_twin",
+    "rate_halves",
+    "spp_to_reach",
+    "with_twin",
+]
 
 
 def needs_twin(scorer) -> bool:
@@ -52,6 +61,28 @@ def at_full_samples(quality: np.ndarray, share: np.ndarray) -> np.ndarray:
     k = np.asarray(share, dtype=np.float64)
     den = q + (1.0 - q) * k
     return np.divide(q, den, out=np.zeros_like(q), where=den > 0).astype(np.float32)
+
+
+def spp_to_reach(score: float, spp: float, target: float, higher_is_better: bool = True) -> float | None:
+    r"""Samples per pixel at which a pooled ``score`` of an image of ``spp`` samples would reach ``target``.
+
+    SSIM (``higher_is_better``): the law of :func:`at_full_samples` solved for the share, i.e. the
+    noise variance falling as 1 / samples in ``q = X / (X + y)``: ``spp * t (1 - q) / (q (1 - t))``.
+    The MAE (lower is better) falls as 1 / sqrt(samples): ``spp * (score / target)^2``. Applied to
+    the pooled score rather than per pixel, it is an estimate, used to size a loop's steps
+    (:meth:`~nriqa.render.stop.TargetScore.spp_to_go`). ``None`` where no count reaches the target
+    (an SSIM target of 1 or more, an MAE target of 0 or less, a score that is not finite).
+    """
+    if not np.isfinite(score) or not spp > 0:
+        return None
+    if higher_is_better:
+        if not 0.0 < target < 1.0:
+            return None
+        q = float(np.clip(score, 1e-6, 1.0 - 1e-6))
+        return spp * target * (1.0 - q) / (q * (1.0 - target))
+    if not target > 0.0:
+        return None
+    return spp * (max(score, 0.0) / target) ** 2
 
 
 @dataclasses.dataclass(frozen=True)
