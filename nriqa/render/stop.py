@@ -5,8 +5,9 @@ and names the row's ``stop``. A rule may also state a budget: ``time_budget()`` 
 plus scoring) and ``spp_budget()`` (mean samples per pixel) cut the steps so that the last one
 does not overshoot; and, from the latest row, ``spp_to_go()``: the samples per pixel it expects the
 run still needs, to which the next step is cut (:class:`TargetScore`: where the prediction should
-reach the target, so that the run lands on it instead of stepping past it). A rule that knows the run ends at a row whatever the score (``final``) makes
-the loop rate that row, so the log ends on a fresh prediction.
+reach the target, so that the run lands on it instead of stepping past it). A rule that knows the
+run ends at a row whatever the score (``final``) makes the loop rate that row, so the log ends on
+a fresh prediction.
 """
 
 from __future__ import annotations
