@@ -154,8 +154,6 @@ def tune_equal_time(scenes, args) -> tuple[float, list[dict]]:
 
 def run_equal_time(scenes, scorers, args, threshold: float) -> tuple[list[dict], dict]:
     """Every method on every scene and seed (methods interleaved per seed), and uniform's curve per scene."""
-    from nriqa.render.compare import uniform_curve
-
     records, curves = [], {}
     for name, (scene, reference, _) in scenes.items():
         fns = methods(scene, reference, scorers, args, threshold)
@@ -176,11 +174,16 @@ def run_equal_time(scenes, scorers, args, threshold: float) -> tuple[list[dict],
                 )
                 print(f"  {name} {method} {seed}: SSIM {end['true']:.4f}, {end['spp']:.0f} spp", file=sys.stderr)
         reached = max(r["spp"] for r in records if r["scene"] == name and r["method"] == "uniform")
-        curve_seeds = [SEED_SPACING * (500 + k) for k in range(args.curve_seeds)]
-        curves[name] = uniform_curve(
-            scene, reference, max(3 * reached, args.stop_max_spp), curve_seeds, args.spp_per_step
-        )
+        curves[name] = curve(scene, reference, max(3 * reached, args.stop_max_spp), args)
     return records, curves
+
+
+def curve(scene, reference, max_spp: float, args):
+    """Uniform rendering's error-vs-spp curve of a scene up to ``max_spp`` (``--curve-seeds`` seeds of its own)."""
+    from nriqa.render.compare import uniform_curve
+
+    seeds = [SEED_SPACING * (500 + k) for k in range(args.curve_seeds)]
+    return uniform_curve(scene, reference, max_spp, seeds, args.spp_per_step)
 
 
 def plot(et_rows, stop_rows, args) -> None:
@@ -350,11 +353,13 @@ def main(argv: list[str] | None = None) -> None:
     load_start, t_start = os.getloadavg()[0], time.time()
     scenes, scorers = load_scenes(args), load_scorers(args)
     parts, results, et_rows, stop_rows, curves = [], {"args": {k: str(v) for k, v in vars(args).items()}}, [], [], {}
-    if not {"equal_time", "stop"} <= skip:  # the stop section needs uniform's curves from the equal-time runs
+    if "equal_time" not in skip:
         text, et_rows, curves, raw = equal_time_section(scenes, scorers, args)
         parts.append(text)
         results.update(raw)
     if "stop" not in skip:
+        if not curves:  # no equal-time runs: uniform's curves (for 'uniform needs') to twice the stop's spp
+            curves = {name: curve(scene, ref, 2 * args.stop_max_spp, args) for name, (scene, ref, _) in scenes.items()}
         text, stop_rows, raw = stop_section(scenes, scorers, curves, args)
         parts.append(text)
         results.update(raw)
