@@ -118,3 +118,31 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
     assert len(runs["equal_time"]) == 2 * 2 * 5 and set(runs["stop_thresholds"]) == {"0.9", "0.95", "0.98"}
     assert (out / "render_compare.png").stat().st_size > 10_000
     assert "No --twin-scorer" in table
+
+
+def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
+    """``--skip equal_time``: no clock, so no quiet machine needed; uniform's curves are measured for it."""
+    pytest.importorskip("mitsuba")
+    from nriqa.render.backend import llvm_env, probe_llvm
+
+    ok, reason = probe_llvm()
+    if not ok:
+        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--quick", "--out", str(out), "--skip", "equal_time,half_cost"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        env={**os.environ, **llvm_env()},
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    table = (out / "render_compare.md").read_text()
+    assert "## Early stopping" in table and "## Equal time" not in table and "nan" not in table.lower()
+    assert not (out / "render_compare.csv").exists()
+    with open(out / "render_compare_stop.csv", newline="") as fh:
+        stops = list(csv.DictReader(fh))
+    assert stops and all(float(r["uniform needs"]) > 0 for r in stops)
+    curves = json.loads((out / "runs.json").read_text())["curves"]
+    assert len(curves) == 2 and all(max(c["spp"]) >= 2 * 64 for c in curves.values())
