@@ -187,7 +187,6 @@ class HalfFilm(PixelFilm):
         super().__init__(renderer, seed)
         self.even_sums = np.zeros_like(self.sums)
         self.half: np.ndarray | None = None
-        self._step: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @staticmethod
     def even_count(count: np.ndarray) -> np.ndarray:
@@ -202,7 +201,6 @@ class HalfFilm(PixelFilm):
         self.sums += sums
         self.even_sums += even
         self.count += counts
-        self._step = (sums, even, done, np.asarray(counts, dtype=np.float64))
         self.image = (self.sums / self.count[..., None]).astype(np.float32)
         half = self.even_sums / np.maximum(self.even_count(self.count), 1.0)[..., None]
         self.half = half.astype(np.float32)
@@ -213,13 +211,3 @@ class HalfFilm(PixelFilm):
         if self.image is None:
             raise ValueError("the film has no samples yet: no halves")
         return split_halves(self.image, self.half, self.count, self.even_count(self.count))
-
-    def step_halves(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`halves` of the last step's own samples (the image :meth:`add_uniform` returned)."""
-        if self._step is None:
-            raise ValueError("the film has no samples yet: no halves")
-        sums, even, done, counts = self._step
-        m = self.even_count(done + counts) - self.even_count(done)
-        image = sums / np.maximum(counts, 1.0)[..., None]
-        half = even / np.maximum(m, 1.0)[..., None]
-        return split_halves(image, half, counts, m)

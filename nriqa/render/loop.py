@@ -223,7 +223,8 @@ def render_until(
         max_spp: stop before a step would exceed this many samples per pixel (a large step is cut).
         max_overhead, warmup: as for :func:`render_loop`.
         growth: as for :class:`~nriqa.render.clock.Schedule`; the last step is cut to the time left.
-        map_spp, probe_spp: as for :class:`~nriqa.render.rating.Probes`.
+        map_spp, probe_spp: as for :class:`~nriqa.render.rating.Probes`; a two-buffer scorer
+            rates the image's halves at every count, never a probe.
         seed: seed of the first step; step ``k`` uses ``seed + k``.
 
     Returns:
@@ -302,7 +303,8 @@ def render_adaptive(
         uniform_share: per pixel, the share of each step's samples spread evenly, in [0, 1].
         fraction: per tile, the share of tiles refined per step, in (0, 1].
         max_overhead, reference, warmup: as for :func:`render_loop`; the first map is always predicted.
-        map_spp, probe_spp: per pixel, as for :class:`~nriqa.render.rating.Probes`.
+        map_spp, probe_spp: per pixel, as for :class:`~nriqa.render.rating.Probes` (single-image
+            scorers; a two-buffer scorer rates the image's halves at every count).
         seed: base seed; every render call gets a distinct one.
 
     Returns:
