@@ -2,7 +2,8 @@
 
     python benchmarks/render_compare.py --out reports/render_compare [--budget 1 --seeds 5 --stop-seeds 3]
         [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes] [--twin-scorer NAME|CKPT]
-        [--targets 0.9,0.95,0.98 --stop-max-spp 512] [--skip equal_time,stop,half_cost] [--quick]
+        [--targets 0.9,0.95,0.98 --stop-max-spp 512 --stop-margins 0,0.005,0.01,0.015]
+        [--skip equal_time,stop,half_cost] [--quick]
 
 Scenes: the eight data_gen families (``loop_scene``; the training scenes) and the three Cornell boxes of
 ``--scene-dir`` (``cbox/*.xml`` loaded with ``mi.load_file(path, res=...)``, max depth 8 / 12 / 12). References:
@@ -15,7 +16,8 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
    (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds, methods interleaved per
    seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
-   (``learned``, ``two-buffer``) and ``render_peer`` (threshold per target tuned on the families) stop.
+   (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families) and
+   ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
 3. **half_cost** -- a ``PixelRenderer`` call, the same with the even sums, two calls of half the samples.
 
 The guide: ``docs/render_compare.md``.
@@ -33,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from render_compare_stop import FAMILIES, STOP_GRID, half_cost, stop_section  # noqa: E402
+from render_compare_stop import FAMILIES, STOP_GRID, STOP_MARGINS, half_cost, stop_section  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -250,6 +252,12 @@ def parse(argv):
     ap.add_argument("--peer-threshold", type=float, help="peer at equal time: this threshold instead of tuning one")
     ap.add_argument("--targets", type=floats, default=[0.9, 0.95, 0.98])
     ap.add_argument("--stop-max-spp", type=int, default=512)
+    ap.add_argument(
+        "--stop-margins",
+        type=floats,
+        default=list(STOP_MARGINS),
+        help="learned stop rules stop at target + margin; the margin is tuned on the families from these",
+    )
     ap.add_argument("--twin-scorer", help="a two-buffer scorer: shipped name or checkpoint path (skipped without)")
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
     ap.add_argument("--half-repeats", type=int, default=5)
@@ -277,6 +285,10 @@ def parse(argv):
     grid = PEER_GRID[1::2] if args.quick else PEER_GRID
     args.peer_grid = [args.peer_threshold] if args.peer_threshold else list(grid)
     args.stop_grid = list(STOP_GRID[::2] if args.quick else STOP_GRID)
+    if args.quick:
+        args.stop_margins = args.stop_margins[::2]
+    if not args.stop_margins or not all(0 <= m < 0.1 for m in args.stop_margins):
+        fail(f"--stop-margins must lie in [0, 0.1), got {args.stop_margins}")
     return args
 
 

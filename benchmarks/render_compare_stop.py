@@ -15,6 +15,8 @@ from nriqa.io.tables import markdown_table, write_csv
 # the training scenes: the eight data_gen families (the peer's threshold is tuned on them)
 FAMILIES = ("caustic", "cornell", "door", "envmap", "glossy", "medium", "shadows", "textured")
 STOP_GRID = tuple(0.4 * 0.5 ** (k / 2) for k in range(12))  # stop: 0.4 down to 0.009, steps of sqrt(2)
+STOP_MARGINS = (0.0, 0.005, 0.01, 0.015)  # the learned stop rules stop at predicted >= target + margin
+LEARNED = (("learned", "adaptive"), ("two-buffer", "adaptive (two-buffer)"))  # stop method -> scorer key
 
 
 def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
@@ -48,9 +50,54 @@ def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
     return chosen, rows
 
 
-def run_stop(scenes, scorers, thresholds, args) -> list[dict]:
-    """Early stopping per scene, target and seed: the learned stop rule(s) and the peer's threshold rule."""
-    from nriqa.render import render_peer, render_until
+def learned_stop(scene, reference, scorer, aim: float, seed: int, args) -> dict:
+    """The last row of ``render_until`` with ``scorer`` stopping at predicted >= ``aim``, scoring every step."""
+    from nriqa.render import render_until
+
+    return render_until(
+        scene,
+        scorer,
+        aim,
+        1e9,
+        args.spp_per_step,
+        reference,
+        max_spp=args.stop_max_spp,
+        max_overhead=None,
+        seed=seed,
+        warmup=False,
+    )[1][-1]
+
+
+def tune_margins(scenes, scorers, curves, args) -> tuple[dict[str, float], list[dict]]:
+    """Per learned stop rule, the margin of ``--stop-margins`` on target most often (ties: the smaller) over
+    the families and targets uniform reaches within ``--stop-max-spp``, on the tuning seeds: the same
+    footing as the peer's threshold. A rule that steps onto the target ends where its estimate crosses
+    it, so its estimate's bias decides the outcome; the window is lopsided ([-0.005, +0.02])."""
+    from nriqa.render.compare import on_target, uniform_reaches
+
+    chosen, rows = {}, []
+    for method, key in [(m, k) for m, k in LEARNED if k in scorers]:
+        hits = {}
+        for margin in args.stop_margins:
+            ends = [
+                (learned_stop(scene, reference, scorers[key], min(target + margin, 0.9999), seed, args)["true"], target)
+                for name, (scene, reference, _) in scenes.items()
+                if name in FAMILIES
+                for target in args.targets
+                if uniform_reaches(target, *curves[name], args.stop_max_spp)
+                for seed in args.tuning_seeds
+            ]
+            hits[margin] = sum(bool(on_target(true, target)) for true, target in ends)
+            rows.append({"method": method, "margin": margin, "tuning runs": len(ends), "on target": hits[margin]})
+        chosen[method] = max(args.stop_margins, key=lambda m: (hits[m], -m))
+        print(f"  {method}: margin {chosen[method]:g} ({hits})", file=sys.stderr)
+    return chosen, rows
+
+
+def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
+    """Early stopping per scene, target and seed: the learned stop rule(s) (at target + their margin) and
+    the peer's threshold rule."""
+    from nriqa.render import render_peer
 
     records = []
     for name, (scene, reference, _) in scenes.items():
@@ -68,23 +115,15 @@ def run_stop(scenes, scorers, thresholds, args) -> list[dict]:
                     warmup=False,
                 )
             }
-            for label, key in (("learned", "adaptive"), ("two-buffer", "adaptive (two-buffer)")):
+            for label, key in LEARNED:
                 if key in scorers:
-                    fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target: render_until(
-                        sc,
-                        by,
-                        t,
-                        1e9,
-                        args.spp_per_step,
-                        ref,
-                        max_spp=args.stop_max_spp,
-                        max_overhead=None,
-                        seed=s,
-                        warmup=False,
+                    aim = min(target + margins.get(label, 0.0), 0.9999)
+                    fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], a=aim: learned_stop(
+                        sc, ref, by, a, s, args
                     )
             for seed in args.stop_seeds:
                 for method, fn in fns.items():
-                    end = fn(seed)[1][-1]
+                    end = fn(seed) if method != "peer" else fn(seed)[1][-1]
                     records.append(
                         {
                             "scene": name,
@@ -135,7 +174,8 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
     from nriqa.render.compare import stop_rows, stop_summary
 
     thresholds, tuning = tune_stop(scenes, curves, args)
-    records = run_stop(scenes, scorers, thresholds, args)
+    margins, margin_rows = tune_margins(scenes, scorers, curves, args)
+    records = run_stop(scenes, scorers, thresholds, margins, args)
     rows = stop_rows(records, curves, args.stop_max_spp)
     write_csv(args.out / "render_compare_stop.csv", rows, list(rows[0]))
     text = "\n".join(
@@ -143,6 +183,11 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
             f"## Early stopping (no clock; at most {args.stop_max_spp} spp)\n",
             "Peer thresholds per target, tuned on the families ('on target': share of the tuning runs):\n",
             markdown_table(tuning, list(tuning[0])),
+            "Learned stop rules: stop at the first predicted SSIM >= target + margin, the margin tuned on the "
+            "families and the same seeds (runs on target per margin; chosen: "
+            + ", ".join(f"{k} {v:g}" for k, v in margins.items())
+            + "):\n",
+            markdown_table(margin_rows, ["method", "margin", "tuning runs", "on target"]),
             markdown_table(
                 rows,
                 [
@@ -172,4 +217,14 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
             ),
         ]
     )
-    return text, rows, {"stop": records, "stop_thresholds": thresholds, "stop_tuning": tuning}
+    return (
+        text,
+        rows,
+        {
+            "stop": records,
+            "stop_thresholds": thresholds,
+            "stop_tuning": tuning,
+            "stop_margins": margins,
+            "stop_margin_tuning": margin_rows,
+        },
+    )

@@ -69,6 +69,7 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
         (["--scenes", "cornell,nowhere"], "unknown scene(s) nowhere"),
         (["--targets", "0.9,1.5"], "--targets must lie in (0, 1)"),
         (["--seeds", "0"], "--seeds"),
+        (["--stop-margins", "0,-0.01"], "--stop-margins must lie in [0, 0.1)"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path, argv, message):
@@ -144,5 +145,8 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     with open(out / "render_compare_stop.csv", newline="") as fh:
         stops = list(csv.DictReader(fh))
     assert stops and all(float(r["uniform needs"]) > 0 for r in stops)
-    curves = json.loads((out / "runs.json").read_text())["curves"]
-    assert len(curves) == 2 and all(max(c["spp"]) >= 2 * 64 for c in curves.values())
+    runs = json.loads((out / "runs.json").read_text())
+    assert len(runs["curves"]) == 2 and all(max(c["spp"]) >= 2 * 64 for c in runs["curves"].values())
+    # the learned rule's margin, tuned on the family (cornell) from the quick grid (0, 0.01)
+    assert runs["stop_margins"]["learned"] in (0.0, 0.01) and "Learned stop rules" in table
+    assert {r["margin"] for r in runs["stop_margin_tuning"]} == {0.0, 0.01}
