@@ -80,24 +80,28 @@ def test_bad_options_are_one_line(tmp_path, argv, message):
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()] and message in proc.stderr
 
 
-def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
+def run_quick(out: Path, *argv: str) -> None:
+    """``render_compare.py --quick --out OUT ARGV`` in llvm_ad_rgb (skipped where it is unusable); must succeed."""
     pytest.importorskip("mitsuba")
     from nriqa.render.backend import llvm_env, probe_llvm
 
     ok, reason = probe_llvm()
     if not ok:
         pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
-    out = tmp_path / "out"
-    env = {**os.environ, **llvm_env()}
     proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick", "--out", str(out)],
+        [sys.executable, str(SCRIPT), "--quick", "--out", str(out), *argv],
         capture_output=True,
         text=True,
         cwd=REPO,
-        env=env,
+        env={**os.environ, **llvm_env()},
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
+    out = tmp_path / "out"
+    run_quick(out)
     table = (out / "render_compare.md").read_text()
     assert "## Equal time" in table and "## Early stopping" in table and "## Keeping the half buffer" in table
     assert "nan" not in table.lower()
@@ -123,22 +127,8 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
 
 def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     """``--skip equal_time``: no clock, so no quiet machine needed; uniform's curves are measured for it."""
-    pytest.importorskip("mitsuba")
-    from nriqa.render.backend import llvm_env, probe_llvm
-
-    ok, reason = probe_llvm()
-    if not ok:
-        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
     out = tmp_path / "out"
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "--quick", "--out", str(out), "--skip", "equal_time,half_cost"],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        env={**os.environ, **llvm_env()},
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    run_quick(out, "--skip", "equal_time,half_cost")
     table = (out / "render_compare.md").read_text()
     assert "## Early stopping" in table and "## Equal time" not in table and "nan" not in table.lower()
     assert not (out / "render_compare.csv").exists()
