@@ -50,14 +50,15 @@ def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
     return chosen, rows
 
 
-def learned_stop(scene, reference, scorer, aim: float, seed: int, args) -> dict:
-    """The last row of ``render_until`` with ``scorer`` stopping at predicted >= ``aim``, scoring every step."""
+def learned_stop(scene, reference, scorer, target: float, margin: float, seed: int, args) -> dict:
+    """The last row of ``render_until`` with ``scorer`` stopping at predicted >= ``target + margin`` (below 1),
+    scoring every step."""
     from nriqa.render import render_until
 
     return render_until(
         scene,
         scorer,
-        aim,
+        min(target + margin, 0.9999),
         1e9,
         args.spp_per_step,
         reference,
@@ -80,7 +81,7 @@ def tune_margins(scenes, scorers, curves, args) -> tuple[dict[str, float], list[
         hits = {}
         for margin in args.stop_margins:
             ends = [
-                (learned_stop(scene, reference, scorers[key], min(target + margin, 0.9999), seed, args)["true"], target)
+                (learned_stop(scene, reference, scorers[key], target, margin, seed, args)["true"], target)
                 for name, (scene, reference, _) in scenes.items()
                 if name in FAMILIES
                 for target in args.targets
@@ -113,17 +114,16 @@ def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
                     reference=ref,
                     seed=s,
                     warmup=False,
-                )
+                )[1][-1]
             }
             for label, key in LEARNED:
                 if key in scorers:
-                    aim = min(target + margins.get(label, 0.0), 0.9999)
-                    fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], a=aim: learned_stop(
-                        sc, ref, by, a, s, args
+                    fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target, m=margins[label]: (
+                        learned_stop(sc, ref, by, t, m, s, args)
                     )
             for seed in args.stop_seeds:
                 for method, fn in fns.items():
-                    end = fn(seed) if method != "peer" else fn(seed)[1][-1]
+                    end = fn(seed)  # the run's last row
                     records.append(
                         {
                             "scene": name,
