@@ -1,7 +1,8 @@
 """Render loops against the variance-based peer (Cycles' half-buffer adaptive sampling), at equal time.
 
     python benchmarks/render_compare.py --out reports/render_compare [--budget 1 --seeds 5 --stop-seeds 3]
-        [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes] [--twin-scorer NAME|CKPT]
+        [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes]
+        [--scorer NAME|CKPT] [--twin-scorer NAME|CKPT] [--map-spp 64|none]
         [--targets 0.9,0.95,0.98 --stop-max-spp 512 --stop-margins 0,0.005,0.01,0.015]
         [--skip equal_time,stop,half_cost] [--quick]
 
@@ -12,9 +13,9 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
 ``runs.json``) and printed:
 
 1. **equal_time** -- ``uniform`` (``mi.render``), ``uniform (per pixel)``, ``peer`` (``render_peer``, its
-   threshold tuned at this budget on the families), ``adaptive`` (shipped ``fcnn_fast``), ``adaptive
-   (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds, methods interleaved per
-   seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
+   threshold tuned at this budget on the families), ``adaptive`` (``--scorer``, default the shipped
+   ``fcnn_fast``), ``adaptive (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds,
+   methods interleaved per seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
    (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families) and
    ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
@@ -87,17 +88,25 @@ def load_scenes(args) -> dict[str, tuple[object, np.ndarray, str]]:
     return out
 
 
-def load_scorers(args) -> dict[str, object]:
-    """``adaptive``: the shipped ``fcnn_fast``; ``adaptive (two-buffer)``: ``--twin-scorer``, if given."""
+def load_scorer(option: str, spec: str):
+    """The Scorer of a shipped name or a checkpoint path; a bad one is one line."""
     from nriqa.inference.scorer import Scorer
 
-    scorers = {"adaptive": Scorer.from_pretrained("fcnn_fast")}
+    path = Path(spec)
+    try:
+        return Scorer.from_checkpoint(path) if path.is_file() else Scorer.from_pretrained(spec)
+    except (ValueError, OSError, KeyError) as exc:
+        fail(f"{option} {spec}: {exc}")
+
+
+def load_scorers(args) -> dict[str, object]:
+    """``adaptive``: ``--scorer`` (the shipped ``fcnn_fast``); ``adaptive (two-buffer)``: ``--twin-scorer``."""
+    single = load_scorer("--scorer", args.scorer)
+    if getattr(single, "needs_twin", False):
+        fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
+    scorers = {"adaptive": single}
     if args.twin_scorer:
-        path = Path(args.twin_scorer)
-        try:
-            twin = Scorer.from_checkpoint(path) if path.is_file() else Scorer.from_pretrained(args.twin_scorer)
-        except (ValueError, OSError, KeyError) as exc:
-            fail(f"--twin-scorer {args.twin_scorer}: {exc}")
+        twin = load_scorer("--twin-scorer", args.twin_scorer)
         if not getattr(twin, "needs_twin", False):
             fail(f"--twin-scorer {args.twin_scorer} is no two-buffer scorer (needs_twin is false)")
         scorers["adaptive (two-buffer)"] = twin
@@ -258,6 +267,13 @@ def parse(argv):
         default=list(STOP_MARGINS),
         help="learned stop rules stop at target + margin; the margin is tuned on the families from these",
     )
+    ap.add_argument("--scorer", default="fcnn_fast", help="the single-image scorer: shipped name or checkpoint path")
+    ap.add_argument(
+        "--map-spp",
+        type=lambda v: None if v == "none" else float(v),
+        default=64.0,
+        help="stop: past this many spp a single-image scorer rates a probe ('none': always the image)",
+    )
     ap.add_argument("--twin-scorer", help="a two-buffer scorer: shipped name or checkpoint path (skipped without)")
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
     ap.add_argument("--half-repeats", type=int, default=5)
@@ -358,12 +374,13 @@ def main(argv: list[str] | None = None) -> None:
     from nriqa.render import ensure_variant, is_jit_variant
 
     torch.set_num_threads(args.threads)
+    scorers = load_scorers(args)
     variant = ensure_variant("auto")
     if not is_jit_variant():
         fail(f"the per-pixel loops need llvm_ad_rgb; this machine runs {variant} (set DRJIT_LIBLLVM_PATH to LLVM 19)")
     skip = set(filter(None, args.skip.split(",")))
     load_start, t_start = os.getloadavg()[0], time.time()
-    scenes, scorers = load_scenes(args), load_scorers(args)
+    scenes = load_scenes(args)
     parts, results, et_rows, stop_rows, curves = [], {"args": {k: str(v) for k, v in vars(args).items()}}, [], [], {}
     if "equal_time" not in skip:
         text, et_rows, curves, raw = equal_time_section(scenes, scorers, args)

@@ -66,6 +66,7 @@ def learned_stop(scene, reference, scorer, target: float, margin: float, seed: i
         max_overhead=None,
         seed=seed,
         warmup=False,
+        map_spp=args.map_spp,
     )[1][-1]
 
 

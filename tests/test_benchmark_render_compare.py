@@ -70,6 +70,9 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
         (["--targets", "0.9,1.5"], "--targets must lie in (0, 1)"),
         (["--seeds", "0"], "--seeds"),
         (["--stop-margins", "0,-0.01"], "--stop-margins must lie in [0, 0.1)"),
+        (["--scorer", "dual_fast"], "--scorer dual_fast needs a twin"),
+        (["--scorer", "no_such_model"], "--scorer no_such_model:"),
+        (["--twin-scorer", "fcnn_fast"], "--twin-scorer fcnn_fast is no two-buffer scorer"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path, argv, message):
@@ -128,7 +131,7 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
 def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     """``--skip equal_time``: no clock, so no quiet machine needed; uniform's curves are measured for it."""
     out = tmp_path / "out"
-    run_quick(out, "--skip", "equal_time,half_cost")
+    run_quick(out, "--skip", "equal_time,half_cost", "--map-spp", "none")
     table = (out / "render_compare.md").read_text()
     assert "## Early stopping" in table and "## Equal time" not in table and "nan" not in table.lower()
     assert not (out / "render_compare.csv").exists()
@@ -136,6 +139,7 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
         stops = list(csv.DictReader(fh))
     assert stops and all(float(r["uniform needs"].lstrip("<>")) > 0 for r in stops)  # '>N': past the curve
     runs = json.loads((out / "runs.json").read_text())
+    assert runs["args"]["map_spp"] == "None" and runs["args"]["scorer"] == "fcnn_fast"
     assert len(runs["curves"]) == 2 and all(max(c["spp"]) >= 2 * 64 for c in runs["curves"].values())
     # the learned rule's margin, tuned on the family (cornell) from the quick grid (0, 0.01)
     assert runs["stop_margins"]["learned"] in (0.0, 0.01) and "Learned stop rules" in table
