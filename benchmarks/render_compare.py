@@ -27,6 +27,7 @@ The guide: ``docs/render_compare.md``.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import sys
@@ -52,6 +53,7 @@ CBOX = {
 # A loop's k-th render call uses seed + k: runs' seeds lie this far apart so that no two runs share samples.
 SEED_SPACING = 10_000
 PEER_GRID = (0.2, 0.1, 0.05, 0.025, 0.0125)  # equal time: thresholds tried on the families
+LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read from its signature in main
 
 
 def fail(message: str) -> None:
@@ -86,6 +88,13 @@ def load_scenes(args) -> dict[str, tuple[object, np.ndarray, str]]:
             write_exr(cache, render_spp(loaded, args.reference_spp, seed=987654))
         out[name] = (scene, read_exr(cache)[..., :3], f"{args.reference_spp} spp, seed 987654")
     return out
+
+
+def map_spp_option(value: str) -> float | str | None:
+    """``--map-spp``: a number, ``none`` (always the image) or ``loop`` (argparse passes the default through)."""
+    if value == "none":
+        return None
+    return value if value == LOOP_DEFAULT else float(value)
 
 
 def load_scorer(option: str, spec: str):
@@ -270,9 +279,10 @@ def parse(argv):
     ap.add_argument("--scorer", default="fcnn_fast", help="the single-image scorer: shipped name or checkpoint path")
     ap.add_argument(
         "--map-spp",
-        type=lambda v: None if v == "none" else float(v),
-        default=64.0,
-        help="stop: past this many spp a single-image scorer rates a probe ('none': always the image)",
+        type=map_spp_option,
+        default=LOOP_DEFAULT,
+        help="stop: past this many spp a single-image scorer rates a probe ('none': always the image; "
+        "default: render_until's own)",
     )
     ap.add_argument("--twin-scorer", help="a two-buffer scorer: shipped name or checkpoint path (skipped without)")
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
@@ -305,6 +315,8 @@ def parse(argv):
         args.stop_margins = args.stop_margins[::2]
     if not args.stop_margins or not all(0 <= m < 0.1 for m in args.stop_margins):
         fail(f"--stop-margins must lie in [0, 0.1), got {args.stop_margins}")
+    if args.map_spp not in (None, LOOP_DEFAULT) and not args.map_spp >= 0:
+        fail(f"--map-spp must be >= 0 or 'none', got {args.map_spp}")
     return args
 
 
@@ -371,8 +383,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parse(argv)
     import torch
 
-    from nriqa.render import ensure_variant, is_jit_variant
+    from nriqa.render import ensure_variant, is_jit_variant, render_until
 
+    if args.map_spp == LOOP_DEFAULT:  # the loop's default, so the report cannot drift from it
+        args.map_spp = inspect.signature(render_until).parameters["map_spp"].default
     torch.set_num_threads(args.threads)
     scorers = load_scorers(args)
     variant = ensure_variant("auto")

@@ -73,6 +73,7 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
         (["--scorer", "dual_fast"], "--scorer dual_fast needs a twin"),
         (["--scorer", "no_such_model"], "--scorer no_such_model:"),
         (["--twin-scorer", "fcnn_fast"], "--twin-scorer fcnn_fast is no two-buffer scorer"),
+        (["--map-spp", "-1"], "--map-spp must be >= 0 or 'none'"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path, argv, message):
