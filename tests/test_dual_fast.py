@@ -18,10 +18,10 @@ def _noisy_pair(h, w, sigma=0.05, seed=0):
     return a, b
 
 
-def _trained_like(seed=0):
+def _trained_like(seed=0, **kwargs):
     """A model whose correction is not zero (random head), as after training."""
     torch.manual_seed(seed)
-    model = create_model("dual_fast").eval()
+    model = create_model("dual_fast", **kwargs).eval()
     with torch.no_grad():
         model.head.weight.normal_(0, 0.05)
     return model
@@ -65,12 +65,15 @@ def test_receptive_field_bounds_the_dependency():
         assert hi - lo >= 20
 
 
-@pytest.mark.parametrize("tile", [32, 48])
-def test_tiled_equals_untiled(tile):
+@pytest.mark.parametrize("tile, context", [(32, 0), (48, 0), (48, 21)])
+def test_tiled_equals_untiled(tile, context):
     rng = np.random.default_rng(3)
     image = rng.uniform(0, 4, (150, 130, 3)).astype(np.float32)
     twin = (image * rng.uniform(0.7, 1.3, image.shape)).astype(np.float32)
-    net = _trained_like()
+    # sparse samples: most pixels black in one buffer or both, as at 2 spp in a dark render
+    image[rng.uniform(size=image.shape[:2]) < 0.7] = 0.0
+    twin[rng.uniform(size=twin.shape[:2]) < 0.7] = 0.0
+    net = _trained_like(context=context)
     whole = Scorer(net, tile=0)(image, twin=twin)
     tiled = Scorer(net, tile=tile)(image, twin=twin)
     np.testing.assert_allclose(tiled.map, whole.map, atol=1e-5, rtol=0)
@@ -102,3 +105,45 @@ def test_refuses_one_image_and_bad_construction():
         create_model("dual_fast")(torch.rand(1, 3, 16, 16))
     with pytest.raises(ValueError):
         DualFast(n3x3=0)
+
+
+def _sparse(h, w, keep, seed):
+    """A dark render at very few samples: a dim field where only a fraction ``keep`` of pixels got light."""
+    g = torch.Generator().manual_seed(seed)
+    lit = (torch.rand(1, 1, h, w, generator=g) < keep).float()
+    return (0.6 * torch.rand(1, 3, h, w, generator=g) * lit).clamp(0, 1)
+
+
+def test_context_features_count_black_pixels():
+    model = DualFast(context=5)
+    black, lit = torch.zeros(1, 3, 9, 9), torch.full((1, 3, 9, 9), 0.5)
+    both, one = model._sparse_fractions(black, black)
+    assert float(both.min()) == 1.0 and float(one.max()) == 0.0  # a truly black region
+    both, one = model._sparse_fractions(lit, lit)
+    assert float(both.max()) == 0.0 and float(one.max()) == 0.0  # a converged one
+    half = lit.clone()
+    half[..., ::2] = 0.0  # every other column black in one buffer only
+    both, one = model._sparse_fractions(half, lit)
+    assert float(both.max()) == 0.0 and 0.3 < float(one[0, 0, 4, 4]) < 0.7
+
+
+def test_context_reaches_as_far_as_its_receptive_field():
+    model = _trained_like(context=21).double()
+    assert model.receptive_field == 2 * 7 + 20 == 34 and model.min_size == 12
+    a = _sparse(96, 96, 0.6, 0).double()
+    b = a * (torch.rand(a.shape, generator=torch.Generator().manual_seed(1), dtype=a.dtype) > 0.2)
+    with torch.no_grad():
+        y = model(torch.cat([a, b], 1))[0, 0, 48, 48]
+        for dx, moves in ((16, True), (18, False)):  # the window reaches 17 px a side, no further
+            a2 = a.clone()
+            a2[..., 48, 48 + dx] = 0.7  # a sample lands on a black pixel: no gradient through the threshold
+            y2 = model(torch.cat([a2, b], 1))[0, 0, 48, 48]
+            assert float(y) > 0 and (float((y2 - y).abs()) > 0) == moves, dx
+
+
+def test_context_is_off_by_default_and_checked():
+    assert create_model("dual_fast").context == 0
+    assert create_model("dual_fast", context=21).trunk[0].in_channels == (7 + 2) * 4
+    for bad in (2, 1, -3):
+        with pytest.raises(ValueError, match="context"):
+            DualFast(context=bad)

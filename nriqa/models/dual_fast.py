@@ -21,6 +21,12 @@ buffer, and training can only move it where the data say it is wrong. Output ``R
 * receptive field: the 11x11 SSIM window (radius 5) under a trunk of ``n3x3`` 3x3 convolutions on
   2x2 blocks (``2 * (2 n3x3 + 1)`` px): ``2 * (2 n3x3 + 1) + 10`` px, 24 for the default 3.
 
+``context=k`` (odd, off by default) adds two features for the lowest sample counts, where both
+buffers are black on most pixels and agree there, so ``D`` reads them as converged: over a k x k
+box, the fraction of pixels black in both buffers and the fraction black in exactly one. A render
+whose paths mostly miss the light has many of the second; a truly black region has none, and
+neither has a converged dim one. The window grows to ``max(11, k)``.
+
 The name follows Whittle's "dual buffer" and the model it extends (:mod:`nriqa.models.fcnn_fast`).
 """
 
@@ -36,8 +42,11 @@ from nriqa.models.fcnn import block_trunk
 
 __all__ = ["DualFast", "dual_fast"]
 
-# Image, image - twin, corrected dual-buffer map.
+# Image, image - twin, corrected dual-buffer map; with context, two sparse-sample fractions.
 _FEATURES = 3 + 3 + 1
+_CONTEXT_FEATURES = 2
+# A displayed pixel counts as black at or below this (every channel): under half an 8-bit step.
+BLACK = 1.0 / 512
 
 
 class DualFast(nn.Module):
@@ -47,16 +56,21 @@ class DualFast(nn.Module):
     align = 2
     in_channels = 6
 
-    def __init__(self, width: int = 32, n3x3: int = 3, n1x1: int = 1):
+    def __init__(self, width: int = 32, n3x3: int = 3, n1x1: int = 1, context: int = 0):
         super().__init__()
         if n3x3 < 1:
             raise ValueError(f"DualFast needs at least one 3x3 block, got n3x3={n3x3}")
+        if context and (context < 3 or context % 2 == 0):
+            raise ValueError(f"DualFast context must be 0 (off) or an odd window >= 3, got {context}")
         s = self.align
-        self.trunk = nn.Sequential(*block_trunk(_FEATURES * s * s, width, n3x3, n1x1))
+        self.context = int(context)
+        cin = _FEATURES + (_CONTEXT_FEATURES if context else 0)
+        self.trunk = nn.Sequential(*block_trunk(cin * s * s, width, n3x3, n1x1))
         self.head = nn.Conv2d(width, s * s, 1)
-        self.receptive_field = s * (2 * n3x3 + 1) + 2 * (WINDOW // 2)
-        # The SSIM window needs WINDOW // 2 + 1 pixels a side (reflect padding).
-        self.min_size = WINDOW // 2 + 1 + (WINDOW // 2 + 1) % s
+        window = max(WINDOW, self.context)
+        self.receptive_field = s * (2 * n3x3 + 1) + 2 * (window // 2)
+        # The SSIM window (and the context box) need window // 2 + 1 pixels a side (reflect padding).
+        self.min_size = window // 2 + 1 + (window // 2 + 1) % s
         init_keras_(self)
         nn.init.zeros_(self.head.weight)  # untrained == the corrected dual buffer
         self.to(memory_format=torch.channels_last)
@@ -68,7 +82,10 @@ class DualFast(nn.Module):
         h, w = x.shape[-2:]
         a, b = x[:, :3], x[:, 3:]
         d = correct_dual_buffer(ssim_map(a, b))
-        feats = torch.cat([a, a - b, d], dim=1)
+        feats = [a, a - b, d]
+        if self.context:
+            feats += self._sparse_fractions(a, b)
+        feats = torch.cat(feats, dim=1)
         s = self.align
         ph, pw = -h % s, -w % s
         if ph or pw:
@@ -76,6 +93,15 @@ class DualFast(nn.Module):
         y = self.trunk(F.pixel_unshuffle(feats, s).contiguous(memory_format=torch.channels_last))
         delta = F.pixel_shuffle(self.head(y), s)[..., :h, :w]
         return F.relu(d + delta).contiguous()
+
+    def _sparse_fractions(self, a: Tensor, b: Tensor) -> list[Tensor]:
+        """Over a ``context`` box: the fraction of pixels black in both buffers, and in exactly one."""
+        za = (a.amax(1, keepdim=True) <= BLACK).to(a.dtype)
+        zb = (b.amax(1, keepdim=True) <= BLACK).to(a.dtype)
+        both, one = za * zb, (za - zb).abs()
+        r = self.context // 2
+        box = F.avg_pool2d(F.pad(torch.cat([both, one], 1), (r, r, r, r), mode="reflect"), self.context, stride=1)
+        return [box[:, :1], box[:, 1:]]
 
 
 @register_model
