@@ -27,7 +27,6 @@ The guide: ``docs/render_compare.md``.
 from __future__ import annotations
 
 import argparse
-import inspect
 import json
 import os
 import sys
@@ -382,11 +381,12 @@ def header(args, argv, scenes, scorers, variant, load_start, t_start) -> str:
 def main(argv: list[str] | None = None) -> None:
     args = parse(argv)
     import torch
+    from render_loops import defaults_of
 
     from nriqa.render import ensure_variant, is_jit_variant, render_until
 
     if args.map_spp == LOOP_DEFAULT:  # the loop's default, so the report cannot drift from it
-        args.map_spp = inspect.signature(render_until).parameters["map_spp"].default
+        args.map_spp = defaults_of(render_until)["map_spp"]
     torch.set_num_threads(args.threads)
     scorers = load_scorers(args)
     variant = ensure_variant("auto")
