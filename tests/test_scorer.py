@@ -172,6 +172,17 @@ def test_pretrained_roundtrip(tmp_path, fast_net):
     assert not load_pretrained(str(pt)).training  # a path to the .pt works too
 
 
+def test_pretrained_export_is_reproducible(tmp_path, fast_net):
+    """The same weights exported twice are the same bytes (the card's sha256 names the weights, not the export)."""
+    shas = [
+        json.loads(save_pretrained(fast_net, "fcnn_fast", {}, dir=tmp_path / d).with_suffix(".json").read_text())[
+            "sha256"
+        ]
+        for d in ("a", "b")
+    ]
+    assert shas[0] == shas[1]
+
+
 def test_pretrained_unknown_name_lists_available(tmp_path, fast_net):
     save_pretrained(fast_net, "fcnn_fast", {}, dir=tmp_path)
     with pytest.raises(PretrainedError, match="no shipped weights 'nope'.*available: fcnn_fast"):

@@ -92,8 +92,10 @@ def save_pretrained(
         raise PretrainedError(f"weights {name!r}: the network has NaN/Inf parameters; refusing to ship them")
     root = Path(dir) if dir is not None else WEIGHTS_DIR
     pt = root / f"{name}.pt"
-    with atomic_path(pt) as tmp:
-        torch.save({"format": FORMAT, "spec": spec, "state_dict": state}, tmp)
+    # Through a file object: torch.save names the archive's records after a path's stem (here the
+    # random temporary name), so the same weights would get a different sha256 on every export.
+    with atomic_path(pt) as tmp, open(tmp, "wb") as fh:
+        torch.save({"format": FORMAT, "spec": spec, "state_dict": state}, fh)
     full_card = {
         **dict(card),
         "name": name,
