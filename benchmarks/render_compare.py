@@ -41,6 +41,7 @@ from render_compare_stop import FAMILIES, STOP_GRID, STOP_MARGINS, half_cost, st
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from nriqa.inference import DEFAULT_WEIGHTS  # noqa: E402
 from nriqa.io.atomic import save_figure, write_text_atomic  # noqa: E402
 from nriqa.io.tables import markdown_table, write_csv  # noqa: E402
 
@@ -275,7 +276,11 @@ def parse(argv):
         default=list(STOP_MARGINS),
         help="learned stop rules stop at target + margin; the margin is tuned on the families from these",
     )
-    ap.add_argument("--scorer", default="fcnn_fast", help="the single-image scorer: shipped name or checkpoint path")
+    ap.add_argument(
+        "--scorer",
+        default=DEFAULT_WEIGHTS,
+        help=f"the single-image scorer: shipped name or checkpoint path (default {DEFAULT_WEIGHTS})",
+    )
     ap.add_argument(
         "--map-spp",
         type=map_spp_option,

@@ -25,6 +25,18 @@ def test_shipped_models_load_with_their_cards():
         assert np.isfinite(result.map).all() and np.isfinite(result.score)
 
 
+def test_the_default_weights_are_shipped_single_image_and_used_when_none_is_named():
+    from nriqa.cli.predict import build_parser
+    from nriqa.inference import DEFAULT_WEIGHTS
+
+    assert DEFAULT_WEIGHTS in list_pretrained()
+    scorer = Scorer.from_pretrained()
+    assert not scorer.needs_twin
+    assert build_parser().parse_args(["x.exr"]).model == DEFAULT_WEIGHTS
+    x = np.random.default_rng(1).random((40, 40, 3)).astype(np.float32)
+    assert scorer(x, hdr=False).score == Scorer.from_pretrained(DEFAULT_WEIGHTS)(x, hdr=False).score
+
+
 # Image SROCC measured with the shipped weights: fcnn_fast 0.965 (4000 CPU steps on the default
 # set), fcnn 0.892 (800 CPU steps), dual_fast 0.987 with each image's twin; the bounds leave room
 # for other CPUs' rounding.

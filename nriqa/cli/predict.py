@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from nriqa.inference import DEFAULT_WEIGHTS
 from nriqa.io.imread import read_image
 
 DESCRIPTION = "Score rendered images without their reference: a quality map and a pooled score per file."
@@ -74,7 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=DESCRIPTION)
     ap.add_argument("images", nargs="+", metavar="IMAGE", help=".exr (linear HDR) or .png/.jpg (LDR) files")
     src = ap.add_mutually_exclusive_group()
-    src.add_argument("--model", default="fcnn_fast", help="shipped weights name or a path to a .pt (default fcnn_fast)")
+    src.add_argument(
+        "--model",
+        default=DEFAULT_WEIGHTS,
+        help=f"shipped weights name or a path to a .pt (default {DEFAULT_WEIGHTS})",
+    )
     src.add_argument("--checkpoint", type=Path, help="a training checkpoint (.ckpt) instead of shipped weights")
     ap.add_argument(
         "--twin",

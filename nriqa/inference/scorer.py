@@ -130,11 +130,15 @@ class Scorer:
         return self.quantity == "ssim"
 
     @classmethod
-    def from_pretrained(cls, name: str = "fcnn_fast", *, dir: str | os.PathLike | None = None, **kwargs) -> Scorer:
-        """A scorer with the shipped weights ``name`` (:func:`nriqa.inference.pretrained.load_pretrained`)."""
+    def from_pretrained(cls, name: str | None = None, *, dir: str | os.PathLike | None = None, **kwargs) -> Scorer:
+        """A scorer with the shipped weights ``name`` (:func:`nriqa.inference.pretrained.load_pretrained`).
+
+        Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
+        """
+        from nriqa.inference import DEFAULT_WEIGHTS
         from nriqa.inference.pretrained import load_pretrained
 
-        return cls(load_pretrained(name, dir=dir), **kwargs)
+        return cls(load_pretrained(name or DEFAULT_WEIGHTS, dir=dir), **kwargs)
 
     @classmethod
     def from_checkpoint(cls, path: str | os.PathLike, **kwargs) -> Scorer:
