@@ -222,3 +222,63 @@ def test_export_command(tmp_path, fast_net, capsys):
     )
     assert pretrained_main(["export", str(tmp_path / "missing.ckpt"), "x", "--dir", str(out)]) == 2
     assert "no such checkpoint" in capsys.readouterr().err
+
+
+def _windowed_unet(window=32):
+    torch.manual_seed(0)
+    return create_model("unet_fast", width=8, depth=1, window=window).eval()
+
+
+def test_window_model_reads_large_images_in_independent_pieces():
+    """Each window-side piece is scored alone, as in training; the last piece is moved in, overlaps averaged."""
+    net = _windowed_unet(32)
+    x = np.random.default_rng(3).random((80, 72, 3)).astype(np.float32)
+    scorer = Scorer(net)
+    assert scorer.window == 32
+    qmap = scorer(x, hdr=False).map
+    t = torch.from_numpy(x).permute(2, 0, 1)[None]
+    with torch.inference_mode():
+        alone = lambda y0, x0: net(t[..., y0 : y0 + 32, x0 : x0 + 32])[0, 0].clamp(0, 1).numpy()  # noqa: E731
+        np.testing.assert_allclose(qmap[:32, :32], alone(0, 0), atol=1e-6)
+        np.testing.assert_allclose(qmap[32:48, 32:40], alone(32, 32)[:16, :8], atol=1e-6)
+        # rows 64..79 only in the piece moved in (48..79); rows 48..63 the mean of two pieces
+        np.testing.assert_allclose(qmap[64:, :32], alone(48, 0)[16:], atol=1e-6)
+        np.testing.assert_allclose(qmap[48:64, :32], (alone(32, 0)[16:] + alone(48, 0)[:16]) / 2, atol=1e-6)
+    # a change in another piece leaves this piece's map alone; window=0 reads the image in one piece
+    y = x.copy()
+    y[40:, 40:] = 1.0
+    np.testing.assert_array_equal(scorer(y, hdr=False).map[:32, :32], qmap[:32, :32])
+    with torch.inference_mode():
+        whole = net(t)[0, 0].clamp(0, 1).numpy()
+    np.testing.assert_allclose(Scorer(net, window=0)(x, hdr=False).map, whole, atol=1e-6)
+
+
+def test_window_leaves_small_images_whole_and_batches_agree():
+    net = _windowed_unet(64)
+    rng = np.random.default_rng(4)
+    small = rng.random((64, 48, 3)).astype(np.float32)
+    with torch.inference_mode():
+        whole = net(torch.from_numpy(small).permute(2, 0, 1)[None])[0, 0].clamp(0, 1).numpy()
+    np.testing.assert_allclose(Scorer(net)(small, hdr=False).map, whole, atol=1e-6)
+    batch = rng.random((3, 150, 100, 3)).astype(np.float32)
+    scorer = Scorer(net, tile=64)  # tile only sizes the chunks of pieces per forward here
+    maps = scorer(batch, hdr=False).map
+    for i in range(3):
+        np.testing.assert_allclose(maps[i], Scorer(net)(batch[i], hdr=False).map, atol=1e-6)
+    with pytest.raises(ValueError, match="window"):
+        Scorer(net, window=-1)
+
+
+def test_export_spec_states_the_window(tmp_path, capsys):
+    net = _windowed_unet(0)
+    ckpt = tmp_path / "last.ckpt"
+    state = {f"net.{k}": v for k, v in net.state_dict().items()}
+    torch.save({"state_dict": state, "hyper_parameters": {"net": {"name": "unet_fast", "width": 8, "depth": 1}}}, ckpt)
+    out = tmp_path / "weights"
+    assert pretrained_main(["export", str(ckpt), "u", "--spec", "window=32", "--dir", str(out)]) == 0
+    shipped = Scorer.from_pretrained("u", dir=out)
+    assert shipped.window == 32 and json.loads((out / "u.json").read_text())["spec"]["window"] == 32
+    assert pretrained_main(["export", str(ckpt), "v", "--spec", "windw=32", "--dir", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "does not fit its weights" in err and len(err.strip().splitlines()) == 1
+    assert not (out / "v.pt").exists()

@@ -58,3 +58,15 @@ def test_eval_is_deterministic():
     x = torch.rand(1, 3, 64, 64)
     with torch.inference_mode():
         assert torch.equal(model(x), model(x))
+
+
+def test_window_is_stated_not_used_by_forward():
+    torch.manual_seed(0)
+    plain, stated = UNetFast(width=8, depth=1), UNetFast(width=8, depth=1, window=32)
+    stated.load_state_dict(plain.state_dict())
+    x = torch.rand(1, 3, 80, 80)
+    with torch.inference_mode():
+        assert torch.equal(plain.eval()(x), stated.eval()(x))
+    assert stated.window == 32 and plain.window == 0
+    with pytest.raises(ValueError, match="window"):
+        UNetFast(window=-1)

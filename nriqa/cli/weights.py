@@ -1,7 +1,7 @@
 """``nriqa-weights``: list the shipped weights, or export a training checkpoint as shipped weights.
 
     nriqa-weights list [--dir DIR]
-    nriqa-weights export CHECKPOINT NAME [--card KEY=VALUE ...] [--dir DIR]
+    nriqa-weights export CHECKPOINT NAME [--card KEY=VALUE ...] [--spec KEY=VALUE ...] [--dir DIR]
 
 Formats and checks are :mod:`nriqa.inference.pretrained`'s. Exit code 2 with one line on stderr for
 unknown weights or an unusable checkpoint.
@@ -16,13 +16,13 @@ import sys
 from nriqa.inference.pretrained import WEIGHTS_DIR, PretrainedError, export_checkpoint, list_pretrained, load_card
 
 
-def parse_card(items: list[str]) -> dict:
+def parse_card(items: list[str], option: str = "--card") -> dict:
     """``["key=value", ...]`` as a dict; each value parsed as JSON where it can be, else kept as a string."""
     card = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise PretrainedError(f"--card {item!r}: expected key=value")
+            raise PretrainedError(f"{option} {item!r}: expected key=value")
         try:
             card[key] = json.loads(value)
         except ValueError:
@@ -45,6 +45,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="a card entry (value parsed as JSON if it can be)",
     )
+    ex.add_argument(
+        "--spec",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a network argument that leaves the weights as they are, e.g. window=64 for unet_fast",
+    )
     ex.add_argument("--dir", default=None, help=f"target folder (default {WEIGHTS_DIR})")
     ls = sub.add_parser("list", help="list shipped weights and their cards")
     ls.add_argument("--dir", default=None, help=f"folder of weights (default {WEIGHTS_DIR})")
@@ -59,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         if args.cmd == "export":
-            pt = export_checkpoint(args.checkpoint, args.name, parse_card(args.card), dir=args.dir)
+            card, spec = parse_card(args.card), parse_card(args.spec, "--spec")
+            pt = export_checkpoint(args.checkpoint, args.name, card, dir=args.dir, spec=spec)
             print(f"wrote {pt} and {pt.with_suffix('.json')}")
         else:
             for name in list_pretrained(args.dir):

@@ -177,18 +177,33 @@ def _git_commit() -> str | None:
 
 
 def export_checkpoint(
-    checkpoint: str | os.PathLike, name: str, card: Mapping, dir: str | os.PathLike | None = None
+    checkpoint: str | os.PathLike,
+    name: str,
+    card: Mapping,
+    dir: str | os.PathLike | None = None,
+    spec: Mapping | None = None,
 ) -> Path:
     """Turn a Lightning checkpoint of :class:`nriqa.training.module.NRIQAModule` into shipped weights.
 
     The card gets ``checkpoint``, ``exported`` (UTC time), ``commit`` (``git rev-parse HEAD``),
     ``epoch``, ``global_step`` and the ModelCheckpoint ``monitor``/``best_model_score`` added
-    (entries given in ``card`` win). Returns the ``.pt`` path.
+    (entries given in ``card`` win). ``spec`` adds or replaces constructor arguments of the
+    checkpoint's network spec that do not change its weights (e.g. ``window`` for ``unet_fast``);
+    the network is rebuilt with them, so a wrong one fails here. Returns the ``.pt`` path.
     """
     from nriqa.training.checkpoint import load_net_from_checkpoint
 
     net = load_net_from_checkpoint(checkpoint)
     ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
+    net_spec = {**ckpt["hyper_parameters"]["net"], **dict(spec or {})}
+    if spec:
+        try:
+            rebuilt = create_model(**net_spec)
+            rebuilt.load_state_dict(net.state_dict())
+        except (TypeError, ValueError, RuntimeError, KeyError) as exc:
+            message = f"{checkpoint}: the network spec {net_spec} does not fit its weights ({exc})"
+            raise PretrainedError(message) from None
+        net = rebuilt.eval()
     full = {
         "checkpoint": str(checkpoint),
         "exported": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
@@ -198,7 +213,7 @@ def export_checkpoint(
         **_checkpoint_monitor(ckpt),
         **dict(card),
     }
-    return save_pretrained(net, name, full, dir=dir, spec=ckpt["hyper_parameters"]["net"])
+    return save_pretrained(net, name, full, dir=dir, spec=net_spec)
 
 
 def _checkpoint_monitor(ckpt: Mapping) -> dict:

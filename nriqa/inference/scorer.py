@@ -96,11 +96,27 @@ class Scorer:
     ``align``, and the halo is cut from the output: tiled maps equal untiled ones to float
     rounding (~1e-6). Memory then depends on the tile, not the image (see ``benchmarks/scorer.py``).
 
+    Windows: a context model that learnt from images of one size (``net.window``, e.g. ``unet_fast``
+    trained on whole 64x64 renders) reads larger images in independent windows of that side, as it
+    saw them in training, instead of in one piece whose context it never met. Windows start at
+    multiples of ``window`` from the top-left corner; the last in each direction is moved in to touch
+    the border and overlapping pixels take the mean. ``window=0`` turns this off (one piece, tiled as
+    below); a map is then smooth across window borders, but a large image is read out of the model's
+    training regime (docs/results/evaluation.md measures both).
+
     Inference runs in ``torch.inference_mode()`` and eval mode (no dropout, batch-norm running
     statistics): the same input gives the same map.
     """
 
-    def __init__(self, net: nn.Module, *, tile: int = 512, stride: int = 8, device: str | torch.device | None = None):
+    def __init__(
+        self,
+        net: nn.Module,
+        *,
+        tile: int = 512,
+        stride: int = 8,
+        window: int | None = None,
+        device: str | torch.device | None = None,
+    ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
             raise TypeError(
@@ -110,6 +126,9 @@ class Scorer:
             raise ValueError(f"stride must be >= 1, got {stride}")
         if tile < 0:
             raise ValueError(f"tile must be >= 0 (0 = never tile), got {tile}")
+        window = int(getattr(net, "window", 0) or 0) if window is None else int(window)
+        if window < 0 or (output != "map" and window):
+            raise ValueError(f"window must be >= 0 and is for map models only, got {window} for {type(net).__name__}")
         if device is None:
             device = next(net.parameters()).device
         self.net = net.to(device).eval()
@@ -121,6 +140,7 @@ class Scorer:
         self.needs_twin = int(getattr(net, "in_channels", 3)) == 6
         self.align = int(getattr(net, "align", 1))
         self.tile = -(-tile // self.align) * self.align if tile else 0
+        self.window = max(window, self.min_size) if window else 0
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
 
@@ -243,6 +263,8 @@ class Scorer:
         if self.output == "patch":
             return self._patch_map(self.prepare(batch, flags).to(self.device))
         h, w = batch.shape[-2:]
+        if self.window and (h > self.window or w > self.window):
+            return self._windowed_map(batch, flags, twins)
         if not self.tile or (h <= self.tile and w <= self.tile):
             return self.net(self._input(batch, flags, twins))[:, 0].clamp(0.0, 1.0)
         return self._tiled_map(batch, flags, twins)
@@ -264,6 +286,25 @@ class Scorer:
                 pred = self.net(tile)[:, 0]
                 out[:, y0:y1, x0:x1] = pred[:, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
         return out.clamp_(0.0, 1.0)
+
+    def _windowed_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
+        """Independent ``window``-side pieces, batched; overlaps (the last piece moved in) averaged."""
+        b, _, h, w = batch.shape
+        wh, ww = min(self.window, h), min(self.window, w)
+        ys, xs = _window_starts(h, wh, wh), _window_starts(w, ww, ww)
+        total = torch.zeros(b, h, w, dtype=torch.float32, device=self.device)
+        count = torch.zeros(h, w, dtype=torch.float32, device=self.device)
+        chunk = max(1, ((self.tile or 512) ** 2) // (wh * ww))
+        for y0 in ys:
+            rows = (slice(None), slice(None), slice(y0, y0 + wh))
+            strip = self._input(batch[rows], flags, None if twins is None else twins[rows])  # (B, C, wh, W)
+            pieces = torch.stack([strip[..., x0 : x0 + ww] for x0 in xs], dim=1).flatten(0, 1)  # (B*nx, C, wh, ww)
+            pred = torch.cat([self.net(pieces[i : i + chunk])[:, 0] for i in range(0, pieces.shape[0], chunk)])
+            pred = pred.view(b, len(xs), wh, ww)
+            for k, x0 in enumerate(xs):
+                total[:, y0 : y0 + wh, x0 : x0 + ww] += pred[:, k]
+                count[y0 : y0 + wh, x0 : x0 + ww] += 1
+        return (total / count).clamp_(0.0, 1.0)
 
     def _patch_map(self, x: Tensor) -> Tensor:
         """Sliding-window map of the patch model: each window's score averaged over its pixels."""

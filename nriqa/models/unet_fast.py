@@ -15,6 +15,11 @@ where it costs little, and keeps ``fcnn_fast``'s design at full resolution:
 stacked). Inputs of any size are zero-padded bottom/right to a multiple of ``align`` and cropped
 back. The receptive field is computed from the layers (:func:`receptive_field`), so tiling halos
 follow it and tiled maps equal untiled ones.
+
+``window``: the side of the images the weights learnt from (0: not stated). The receptive field
+(206 px at depth 3) outgrows a 64x64 training image, so on larger images the context path meets
+surroundings it never saw in training; :class:`nriqa.inference.scorer.Scorer` then reads the image
+in independent ``window``-side pieces. It changes nothing in ``forward``.
 """
 
 from __future__ import annotations
@@ -48,8 +53,11 @@ class UNetFast(nn.Module):
 
     output = "map"
 
-    def __init__(self, width: int = 32, depth: int = 3, in_channels: int = 3):
+    def __init__(self, width: int = 32, depth: int = 3, in_channels: int = 3, window: int = 0):
         super().__init__()
+        if window < 0:
+            raise ValueError(f"UNetFast's window is a side in pixels (0: none), got {window}")
+        self.window = int(window)
         if depth < 1:
             raise ValueError(f"UNetFast needs depth >= 1, got {depth}")
         if in_channels not in (3, 6):
