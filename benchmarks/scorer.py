@@ -89,7 +89,7 @@ def throughput(args) -> str:
     rows = []
     for name in args.models.split(",") if args.models else list_models():
         torch.manual_seed(0)
-        scorer = Scorer(create_model(name), stride=8)
+        scorer = Scorer.from_pretrained(name) if args.shipped else Scorer(create_model(name), stride=8)
         size = args.patch_size if scorer.output == "patch" else args.size
         img = (rng.random((size, size, 3)) * 4).astype(np.float32)
         twin = (rng.random((size, size, 3)) * 4).astype(np.float32) if scorer.needs_twin else None
@@ -231,6 +231,12 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--models", default="", help="throughput: comma-separated registered models (default all)")
+    ap.add_argument(
+        "--shipped",
+        action="store_true",
+        help="throughput: time the shipped weights of these names as users get them (e.g. unet_fast's 64x64 "
+        "windows), not untrained registered models",
+    )
     ap.add_argument("--patch-size", type=int, default=128)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--memory-side", type=int, default=4096)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from nriqa.inference import DEFAULT_WEIGHTS
 from nriqa.render.compare import (
     choose_threshold,
     equal_time_rows,
@@ -140,7 +141,7 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
         stops = list(csv.DictReader(fh))
     assert stops and all(float(r["uniform needs"].lstrip("<>")) > 0 for r in stops)  # '>N': past the curve
     runs = json.loads((out / "runs.json").read_text())
-    assert runs["args"]["map_spp"] == "None" and runs["args"]["scorer"] == "fcnn_fast"
+    assert runs["args"]["map_spp"] == "None" and runs["args"]["scorer"] == DEFAULT_WEIGHTS
     assert len(runs["curves"]) == 2 and all(max(c["spp"]) >= 2 * 64 for c in runs["curves"].values())
     # the learned rule's margin, tuned on the family (cornell) from the quick grid (0, 0.01)
     assert runs["stop_margins"]["learned"] in (0.0, 0.01) and "Learned stop rules" in table

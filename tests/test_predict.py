@@ -15,6 +15,7 @@ import skimage.io
 import torch
 
 from nriqa.cli import predict
+from nriqa.inference import DEFAULT_WEIGHTS
 from nriqa.inference.pretrained import save_pretrained
 from nriqa.io.exr import ImageReadError, read_exr, write_exr
 from nriqa.io.imread import read_image
@@ -143,6 +144,8 @@ def test_cli_bad_files_do_not_stop_the_others(tmp_path, weights):
         *files,
         "--weights-dir",
         str(weights),
+        "--model",
+        "fcnn_fast",
         "--json",
         "--out",
         "out",
@@ -175,12 +178,12 @@ def test_cli_without_weights_is_one_line(tmp_path, capsys):
         [str(tmp_path / "a.exr"), "--weights-dir", str(tmp_path / "none"), "--out", str(tmp_path / "o")]
     )
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "no shipped weights 'fcnn_fast'" in err[0]
+    assert code == 2 and len(err) == 1 and f"no shipped weights '{DEFAULT_WEIGHTS}'" in err[0]
 
 
 def test_cli_plain_output_is_deterministic_and_flags_override(tmp_path, weights, capsys):
     write_exr(tmp_path / "a.exr", rgb(scale=1.0))
-    args = [str(tmp_path / "a.exr"), "--weights-dir", str(weights), "--out"]
+    args = [str(tmp_path / "a.exr"), "--weights-dir", str(weights), "--model", "fcnn_fast", "--out"]
     assert predict.main([*args, str(tmp_path / "o1")]) == 0
     assert predict.main([*args, str(tmp_path / "o2"), "--no-figures"]) == 0
     assert predict.main([*args, str(tmp_path / "o3"), "--no-figures", "--ldr"]) == 0
@@ -221,7 +224,17 @@ def test_truncated_exr_in_a_json_batch(tmp_path, weights):
     write_exr(tmp_path / "a.exr", rgb())
     write_exr(tmp_path / "b.exr", rgb(seed=1))
     files = ["a.exr", cut.name, "b.exr"]
-    cmd = [sys.executable, str(REPO / "predict.py"), *files, "--weights-dir", str(weights), "--json", "--no-figures"]
+    cmd = [
+        sys.executable,
+        str(REPO / "predict.py"),
+        *files,
+        "--weights-dir",
+        str(weights),
+        "--model",
+        "fcnn_fast",
+        "--json",
+        "--no-figures",
+    ]
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1
@@ -235,7 +248,18 @@ def test_progress_bar_goes_to_stderr(tmp_path, weights, capsys):
     for k in range(2):
         write_exr(tmp_path / f"{k}.exr", rgb(seed=k))
     files = [str(tmp_path / f"{k}.exr") for k in range(2)]
-    args = [*files, "--weights-dir", str(weights), "--out", str(tmp_path / "o"), "--no-figures", "--progress", "on"]
+    args = [
+        *files,
+        "--weights-dir",
+        str(weights),
+        "--model",
+        "fcnn_fast",
+        "--out",
+        str(tmp_path / "o"),
+        "--no-figures",
+        "--progress",
+        "on",
+    ]
     assert predict.main(args) == 0
     out, err = capsys.readouterr()
     assert [line.split()[0] for line in out.splitlines()] == files
@@ -271,7 +295,10 @@ def test_cli_twin_scores_with_a_two_buffer_model(tmp_path, twin_weights, weights
     for args, message in (
         (["a0.exr", *twin_args], "pass --twin TWIN"),
         (["a0.exr", "a1.exr", "--twin", "b0.exr", *twin_args], "give one twin per image"),
-        (["a0.exr", "--twin", "b0.exr", "--weights-dir", str(weights)], "needs a two-buffer model"),
+        (
+            ["a0.exr", "--twin", "b0.exr", "--weights-dir", str(weights), "--model", "fcnn_fast"],
+            "needs a two-buffer model",
+        ),
     ):
         proc = _predict(tmp_path, *args)
         assert proc.returncode == 2 and proc.stdout == ""

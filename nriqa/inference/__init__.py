@@ -2,4 +2,4 @@
 
 # The shipped single-image weights a user gets without naming any: ``Scorer.from_pretrained()``,
 # ``nriqa-predict`` without ``--model``, the render-loop benchmarks. How it was chosen: its card.
-DEFAULT_WEIGHTS = "fcnn_fast"
+DEFAULT_WEIGHTS = "unet_fast"
