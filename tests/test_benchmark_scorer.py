@@ -9,6 +9,8 @@ import pytest
 
 mi = pytest.importorskip("mitsuba")
 
+from nriqa.inference.pretrained import list_pretrained  # noqa: E402
+from nriqa.inference.scorer import Scorer  # noqa: E402
 from nriqa.render.backend import SCALAR_VARIANT, init_worker  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -106,21 +108,20 @@ def test_accuracy_section_gives_intervals_paired_differences_and_the_scores(tmp_
         for line in table.splitlines()
         if line.startswith("| shipped:")
     }
-    assert set(rows) == set(scores["predicted"]) == {"shipped:fcnn_fast", "shipped:fcnn"}
+    single = {f"shipped:{n}" for n in list_pretrained() if not Scorer.from_pretrained(n).needs_twin}
+    assert set(rows) == set(scores["predicted"]) == single and {"shipped:fcnn_fast", "shipped:fcnn"} <= single
     for name, row in rows.items():
         rho = srocc(scores["predicted"][name]["scores"], scores["true_ssim"])
         assert float(row[3]) == pytest.approx(rho, abs=5e-4)
         low, high = (float(v) for v in row[4].split("–"))
         assert low <= float(row[3]) <= high
-    # One is the best; the other carries its paired difference to it, with an interval around it.
-    assert sorted(row[5] == "(the base)" for row in rows.values()) == [False, True]
-    (other,) = [row for row in rows.values() if row[5] != "(the base)"]
-    diff = float(other[5].split()[0])
-    low, high = (float(v) for v in other[5].split("(")[1].rstrip(")").split(" to "))
+    # One is the best; the others carry their paired difference to it, with an interval around it.
+    (better,) = [name for name, row in rows.items() if row[5] == "(the base)"]
+    worse = sorted(name for name in rows if name != better)[0]
+    diff = float(rows[worse][5].split()[0])
+    low, high = (float(v) for v in rows[worse][5].split("(")[1].rstrip(")").split(" to "))
     assert diff <= 0 and low <= diff <= high
-    # --against makes the other one the base: the same difference, the other way round.
-    (worse,) = [name for name, row in rows.items() if row[5] != "(the base)"]
-    (better,) = [name for name in rows if name != worse]
+    # --against makes another one the base: the same difference, the other way round.
     load_benchmark().main(
         [
             "--out",

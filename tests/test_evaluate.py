@@ -210,6 +210,30 @@ def test_crossval_run_scores_each_scene_with_the_fold_that_held_it_out(data, tmp
         CrossvalPredictor(tmp_path / "nothing")
 
 
+def test_window_reaches_the_folds_and_checkpoints(data, tmp_path):
+    """``--window``: fold and checkpoint networks read the (80x80) images in pieces of that side."""
+    from nriqa.eval.predictors import build_predictors
+    from nriqa.inference.scorer import Scorer
+    from nriqa.models import create_model
+
+    torch.manual_seed(0)
+    net = create_model("unet_fast", width=8, depth=1).eval()
+    state = {f"net.{k}": v for k, v in net.state_dict().items()}
+    for scene in ("alpha", "beta"):
+        ckpt = tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt"
+        ckpt.parent.mkdir(parents=True)
+        torch.save({"hyper_parameters": {"net": {"name": "unet_fast", "width": 8, "depth": 1}}, "state_dict": state}, ckpt)
+    run, ckpt = str(tmp_path / "run"), str(ckpt)
+    windowed = build_predictors([], [ckpt], "none", [run], window=32)
+    assert all(s.window == 32 for s in windowed[0].scorers.values()) and windowed[1].scorer.window == 32
+    rows, _, _ = run_predictors(data, windowed[:1], ["alpha"])
+    whole, _, _ = run_predictors(data, build_predictors([], [], "none", [run])[:1], ["alpha"])
+    item = next(it for it in data.items if it.record.scene == "alpha")
+    got = next(r["predicted"] for r in rows if r["id"] == item.record.id)
+    assert got == pytest.approx(Scorer(net, window=32)(item.ldr, hdr=False).score, abs=1e-6)
+    assert got != pytest.approx(next(r["predicted"] for r in whole if r["id"] == item.record.id), abs=1e-6)
+
+
 def test_evaluation_on_the_tiny_preset(tiny, tmp_path):
     main(
         [

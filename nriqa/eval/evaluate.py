@@ -294,6 +294,13 @@ def _parser() -> argparse.ArgumentParser:
         "held it out (repeatable)",
     )
     parser.add_argument(
+        "--window",
+        type=int,
+        default=None,
+        help="checkpoints and --crossval folds: read images larger than this in independent pieces of this "
+        "side (0: whole), as shipped unet_fast does with 64 (default: what each checkpoint states)",
+    )
+    parser.add_argument(
         "--baselines", default="all", help=f"'all', 'none' or a comma list of {', '.join(baseline_names())}"
     )
     parser.add_argument("--scenes", nargs="+", help="evaluate only these scenes (e.g. the held-out scene of a fold)")
@@ -322,7 +329,7 @@ def main(argv: list[str] | None = None) -> None:
     threads = torch.get_num_threads()
     torch.set_num_threads(max(1, args.threads))
     try:
-        predictors = build_predictors(args.model, args.checkpoint, args.baselines, args.crossval)
+        predictors = build_predictors(args.model, args.checkpoint, args.baselines, args.crossval, args.window)
         comparison, _ = evaluate(
             args.data, args.out, predictors, scenes, args.algorithms, args.pattern, args.reference, not args.no_figures
         )

@@ -52,17 +52,18 @@ class CrossvalPredictor(ScorerPredictor):
     """A cross-validation run (``nriqa-crossval``) as one predictor.
 
     Each image is scored by the fold that held its scene out, with that fold's ``last.ckpt`` (the
-    end of training, so no checkpoint was chosen by the held-out scene's loss).
+    end of training, so no checkpoint was chosen by the held-out scene's loss). ``window``: as
+    :class:`nriqa.inference.scorer.Scorer`'s (``None``: what each checkpoint's network states).
     """
 
-    def __init__(self, run_dir: str | Path) -> None:
+    def __init__(self, run_dir: str | Path, window: int | None = None) -> None:
         from nriqa.inference.scorer import Scorer
 
         self.run_dir = Path(run_dir)
         ckpts = sorted(self.run_dir.glob("folds/*/checkpoints/last.ckpt"))
         if not ckpts:
             raise EvaluationError(f"{self.run_dir}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
-        self.scorers = {p.parents[1].name: Scorer.from_checkpoint(p) for p in ckpts}
+        self.scorers = {p.parents[1].name: Scorer.from_checkpoint(p, window=window) for p in ckpts}
         super().__init__(f"{self.run_dir.name}-cv", next(iter(self.scorers.values())))
 
     def scorer_for(self, item: Item):
@@ -96,23 +97,29 @@ def _baseline_list(baselines: str) -> list[str]:
 
 
 def build_predictors(
-    models: list[str], checkpoints: list[str], baselines: str, crossval: list[str] = ()
+    models: list[str],
+    checkpoints: list[str],
+    baselines: str,
+    crossval: list[str] = (),
+    window: int | None = None,
 ) -> list[Predictor]:
     """Learned scorers (cross-validation runs, shipped ``models``, ``checkpoints``) then the baselines.
 
     ``baselines`` is ``all``, ``none`` or a comma list of :func:`nriqa.eval.baselines.baseline_names`.
+    ``window`` applies to checkpoints and cross-validation folds (``None``: what their networks
+    state); shipped weights keep the window their spec states.
 
     Raises:
         EvaluationError: nothing to evaluate, or two predictors with the same name.
         ValueError: an unknown baseline or shipped weights name; CheckpointError for a bad checkpoint.
     """
-    predictors: list[Predictor] = [CrossvalPredictor(run) for run in crossval]
+    predictors: list[Predictor] = [CrossvalPredictor(run, window) for run in crossval]
     if models or checkpoints:
         from nriqa.inference.scorer import Scorer
 
         predictors += [ScorerPredictor(name, Scorer.from_pretrained(name)) for name in models]
         names = checkpoint_names(checkpoints)
-        predictors += [ScorerPredictor(n, Scorer.from_checkpoint(c)) for n, c in zip(names, checkpoints)]
+        predictors += [ScorerPredictor(n, Scorer.from_checkpoint(c, window=window)) for n, c in zip(names, checkpoints)]
     predictors += [create_baseline(n) for n in _baseline_list(baselines)]
     if not predictors:
         raise EvaluationError("nothing to evaluate: give --model, --checkpoint or --baselines")
