@@ -222,7 +222,8 @@ def test_window_reaches_the_folds_and_checkpoints(data, tmp_path):
     for scene in ("alpha", "beta"):
         ckpt = tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt"
         ckpt.parent.mkdir(parents=True)
-        torch.save({"hyper_parameters": {"net": {"name": "unet_fast", "width": 8, "depth": 1}}, "state_dict": state}, ckpt)
+        spec = {"name": "unet_fast", "width": 8, "depth": 1}
+        torch.save({"hyper_parameters": {"net": spec}, "state_dict": state}, ckpt)
     run, ckpt = str(tmp_path / "run"), str(ckpt)
     windowed = build_predictors([], [ckpt], "none", [run], window=32)
     assert all(s.window == 32 for s in windowed[0].scorers.values()) and windowed[1].scorer.window == 32
