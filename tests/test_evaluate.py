@@ -251,3 +251,30 @@ def test_evaluation_on_the_tiny_preset(tiny, tmp_path):
     header = (tmp_path / "comparison.csv").read_text().splitlines()[0].split(",")
     srocc = float(rows["dual_buffer_corrected"][header.index("srocc")])
     assert srocc > 0.9, "the twin-based estimate ranks the tiny preset's images nearly perfectly"
+
+
+def test_crossval_runs_joined_with_plus_score_with_the_mean_of_their_folds(data, tmp_path):
+    from nriqa.eval.dataset import EvaluationError
+    from nriqa.eval.predictors import CrossvalPredictor
+    from nriqa.inference.scorer import Scorer
+    from nriqa.models import create_model
+
+    nets = {}
+    for seed, run in enumerate(["s0", "s1"]):
+        torch.manual_seed(seed)
+        nets[run] = create_model("fcnn_fast").eval()
+        state = {f"net.{k}": v for k, v in nets[run].state_dict().items()}
+        scenes = ("alpha", "beta") if run == "s0" else ("alpha",)
+        for scene in scenes:
+            ckpt = tmp_path / run / "folds" / scene / "checkpoints" / "last.ckpt"
+            ckpt.parent.mkdir(parents=True)
+            torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, ckpt)
+    p = CrossvalPredictor(f"{tmp_path / 's0'}+{tmp_path / 's1'}")
+    assert p.name == "s0+s1-cv" and set(p.scorers) == {"alpha"}  # only the scenes both runs hold out
+    rows, _, _ = run_predictors(data, [p], ["alpha"])
+    item = next(it for it in data.items if it.record.scene == "alpha")
+    maps = [Scorer(nets[r])(item.ldr, hdr=False).map for r in ("s0", "s1")]
+    got = next(r["predicted"] for r in rows if r["id"] == item.record.id)
+    assert got == pytest.approx(float(np.clip((maps[0] + maps[1]) / 2, 0, 1).mean()), abs=1e-5)
+    with pytest.raises(EvaluationError, match="no fold holds scene beta out"):
+        run_predictors(data, [p], ["beta"])

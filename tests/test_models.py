@@ -13,6 +13,7 @@ PARAMS = {
     "fcnn": 1_896_577,
     "fcnn11": 2_487_169,
     "fcnn_fast": 90_052,
+    "map_mean": 2 * 371_700,
     "unet_fast": 371_700,
     "unet_fast_twin": 375_156,
 }
@@ -147,3 +148,21 @@ def test_patch_cnn_output_starts_alive_at_the_target_scale():
         out = net(torch.rand(64, 3, 32, 32))
     assert (out > 0).float().mean() > 0.9
     assert 0.0 < out.mean() < 0.2 and out.std() < 0.1
+
+
+def test_map_mean_is_the_mean_of_its_members_and_refuses_a_mixed_pair():
+    torch.manual_seed(0)
+    a, b = (create_model("unet_fast", width=8, depth=1, window=32).eval() for _ in range(2))
+    mean = create_model("map_mean", members=[a, b]).eval()
+    x = torch.rand(2, 3, 48, 40)
+    with torch.inference_mode():
+        torch.testing.assert_close(mean(x), (a(x) + b(x)) / 2)
+    assert (mean.window, mean.in_channels, mean.align, mean.min_size) == (32, 3, 4, a.min_size)
+    from_specs = create_model("map_mean", members=[{"name": "unet_fast", "window": 64}] * 3)
+    assert len(from_specs.members) == 3 and from_specs.receptive_field == 206
+    with pytest.raises(ValueError, match="at least two"):
+        create_model("map_mean", members=[a])
+    with pytest.raises(ValueError, match="agree on in_channels and window"):
+        create_model("map_mean", members=[a, create_model("unet_fast", width=8, depth=1)])
+    with pytest.raises(ValueError, match="map models only"):
+        create_model("map_mean", members=[a, create_model("patch_cnn")])

@@ -282,3 +282,30 @@ def test_export_spec_states_the_window(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "does not fit its weights" in err and len(err.strip().splitlines()) == 1
     assert not (out / "v.pt").exists()
+
+
+def test_export_of_several_checkpoints_ships_their_mean(tmp_path, capsys):
+    nets, ckpts = [], []
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        nets.append(create_model("unet_fast", width=8, depth=1, window=32).eval())
+        ckpts.append(tmp_path / f"s{seed}.ckpt")
+        state = {f"net.{k}": v for k, v in nets[-1].state_dict().items()}
+        spec = {"name": "unet_fast", "width": 8, "depth": 1}
+        torch.save({"state_dict": state, "hyper_parameters": {"net": spec}, "epoch": 5}, ckpts[-1])
+    out = tmp_path / "weights"
+    args = ["export", *map(str, ckpts), "pair", "--spec", "window=32", "--dir", str(out)]
+    assert pretrained_main(args) == 0
+    card = json.loads((out / "pair.json").read_text())
+    assert card["spec"]["name"] == "map_mean" and card["checkpoint"] == [str(c) for c in ckpts]
+    assert card["epoch"] == [5, 5] and [m["window"] for m in card["spec"]["members"]] == [32, 32]
+    x = image()
+    pair = Scorer.from_pretrained("pair", dir=out)
+    assert pair.window == 32
+    maps = [Scorer(n)(x).map for n in nets]
+    np.testing.assert_allclose(pair(x).map, np.clip((maps[0] + maps[1]) / 2, 0, 1), atol=1e-5)
+    twin_spec = {"name": "unet_fast_twin", "width": 8, "depth": 1}  # six channels in: cannot be averaged with one image
+    other = {f"net.{k}": v for k, v in create_model(**twin_spec).state_dict().items()}
+    torch.save({"state_dict": other, "hyper_parameters": {"net": twin_spec}}, tmp_path / "other.ckpt")
+    assert pretrained_main(["export", str(ckpts[0]), str(tmp_path / "other.ckpt"), "x", "--dir", str(out)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1 and not (out / "x.pt").exists()

@@ -1,7 +1,7 @@
 """``nriqa-weights``: list the shipped weights, or export a training checkpoint as shipped weights.
 
     nriqa-weights list [--dir DIR]
-    nriqa-weights export CHECKPOINT NAME [--card KEY=VALUE ...] [--spec KEY=VALUE ...] [--dir DIR]
+    nriqa-weights export CHECKPOINT [CHECKPOINT ...] NAME [--card KEY=VALUE ...] [--spec KEY=VALUE ...] [--dir DIR]
 
 Formats and checks are :mod:`nriqa.inference.pretrained`'s. Exit code 2 with one line on stderr for
 unknown weights or an unusable checkpoint.
@@ -36,7 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = ap.add_subparsers(dest="cmd", required=True)
     ex = sub.add_parser("export", help="turn a training checkpoint into shipped weights + model card")
-    ex.add_argument("checkpoint")
+    ex.add_argument(
+        "checkpoint", nargs="+", help="a training checkpoint; several (seeds of one recipe) ship as their mean"
+    )
     ex.add_argument("name", help="weights name, e.g. fcnn_fast")
     ex.add_argument(
         "--card",

@@ -54,17 +54,34 @@ class CrossvalPredictor(ScorerPredictor):
     Each image is scored by the fold that held its scene out, with that fold's ``last.ckpt`` (the
     end of training, so no checkpoint was chosen by the held-out scene's loss). ``window``: as
     :class:`nriqa.inference.scorer.Scorer`'s (``None``: what each checkpoint's network states).
+    ``run_dir`` may join several runs of one recipe with ``+`` (e.g. two seeds): each scene is then
+    scored by the mean of their folds' maps (:class:`nriqa.models.map_mean.MapMean`).
     """
 
     def __init__(self, run_dir: str | Path, window: int | None = None) -> None:
-        from nriqa.inference.scorer import Scorer
+        runs = [Path(p) for p in str(run_dir).split("+")]
+        self.run_dir = runs[0]
+        folds = []
+        for run in runs:
+            ckpts = {p.parents[1].name: p for p in sorted(run.glob("folds/*/checkpoints/last.ckpt"))}
+            if not ckpts:
+                raise EvaluationError(f"{run}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
+            folds.append(ckpts)
+        scenes = sorted(set.intersection(*(set(f) for f in folds)))
+        if not scenes:
+            raise EvaluationError(f"{run_dir}: the runs hold out no scene in common")
+        self.scorers = {scene: self._scorer([f[scene] for f in folds], window) for scene in scenes}
+        super().__init__("+".join(run.name for run in runs) + "-cv", next(iter(self.scorers.values())))
 
-        self.run_dir = Path(run_dir)
-        ckpts = sorted(self.run_dir.glob("folds/*/checkpoints/last.ckpt"))
-        if not ckpts:
-            raise EvaluationError(f"{self.run_dir}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
-        self.scorers = {p.parents[1].name: Scorer.from_checkpoint(p, window=window) for p in ckpts}
-        super().__init__(f"{self.run_dir.name}-cv", next(iter(self.scorers.values())))
+    @staticmethod
+    def _scorer(ckpts: list[Path], window: int | None):
+        from nriqa.inference.scorer import Scorer
+        from nriqa.models.map_mean import MapMean
+        from nriqa.training.checkpoint import load_net_from_checkpoint
+
+        if len(ckpts) == 1:
+            return Scorer.from_checkpoint(ckpts[0], window=window)
+        return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts]).eval(), window=window)
 
     def scorer_for(self, item: Item):
         scene = item.record.scene

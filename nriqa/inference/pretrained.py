@@ -20,7 +20,7 @@ import hashlib
 import json
 import os
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import torch
@@ -177,7 +177,7 @@ def _git_commit() -> str | None:
 
 
 def export_checkpoint(
-    checkpoint: str | os.PathLike,
+    checkpoint: str | os.PathLike | Sequence[str | os.PathLike],
     name: str,
     card: Mapping,
     dir: str | os.PathLike | None = None,
@@ -189,8 +189,41 @@ def export_checkpoint(
     ``epoch``, ``global_step`` and the ModelCheckpoint ``monitor``/``best_model_score`` added
     (entries given in ``card`` win). ``spec`` adds or replaces constructor arguments of the
     checkpoint's network spec that do not change its weights (e.g. ``window`` for ``unet_fast``);
-    the network is rebuilt with them, so a wrong one fails here. Returns the ``.pt`` path.
+    the network is rebuilt with them, so a wrong one fails here. Several checkpoints (map models
+    of one recipe, e.g. two seeds) become one ``map_mean`` of them (``spec`` applies to each); the
+    card's ``checkpoint``, ``epoch`` and ``global_step`` are then lists. Returns the ``.pt`` path.
     """
+    paths = [checkpoint] if isinstance(checkpoint, (str, os.PathLike)) else list(checkpoint)
+    members = [_member(path, spec) for path in paths]
+    if len(members) == 1:
+        net_spec, net, ckpt = members[0]
+        info = {"checkpoint": str(paths[0]), "epoch": ckpt.get("epoch"), "global_step": ckpt.get("global_step")}
+        info.update(_checkpoint_monitor(ckpt))
+    else:
+        net_spec = {"name": "map_mean", "members": [m[0] for m in members]}
+        try:
+            net = create_model(**net_spec)
+        except ValueError as exc:
+            raise PretrainedError(f"{', '.join(map(str, paths))}: cannot average these networks ({exc})") from None
+        for member, (_, trained, _) in zip(net.members, members):
+            member.load_state_dict(trained.state_dict())
+        net.eval()
+        info = {
+            "checkpoint": [str(p) for p in paths],
+            "epoch": [m[2].get("epoch") for m in members],
+            "global_step": [m[2].get("global_step") for m in members],
+        }
+    full = {
+        **info,
+        "exported": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "commit": _git_commit(),
+        **dict(card),
+    }
+    return save_pretrained(net, name, full, dir=dir, spec=net_spec)
+
+
+def _member(checkpoint: str | os.PathLike, spec: Mapping | None) -> tuple[dict, nn.Module, Mapping]:
+    """A checkpoint's network spec (``spec`` merged in), its network rebuilt with that spec, and the checkpoint."""
     from nriqa.training.checkpoint import load_net_from_checkpoint
 
     net = load_net_from_checkpoint(checkpoint)
@@ -204,16 +237,7 @@ def export_checkpoint(
             message = f"{checkpoint}: the network spec {net_spec} does not fit its weights ({exc})"
             raise PretrainedError(message) from None
         net = rebuilt.eval()
-    full = {
-        "checkpoint": str(checkpoint),
-        "exported": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "commit": _git_commit(),
-        "epoch": ckpt.get("epoch"),
-        "global_step": ckpt.get("global_step"),
-        **_checkpoint_monitor(ckpt),
-        **dict(card),
-    }
-    return save_pretrained(net, name, full, dir=dir, spec=net_spec)
+    return net_spec, net, ckpt
 
 
 def _checkpoint_monitor(ckpt: Mapping) -> dict:
