@@ -162,7 +162,9 @@ def test_map_mean_is_the_mean_of_its_members_and_refuses_a_mixed_pair():
     assert len(from_specs.members) == 3 and from_specs.receptive_field == 206
     with pytest.raises(ValueError, match="at least two"):
         create_model("map_mean", members=[a])
+    unstated = create_model("unet_fast", width=8, depth=1)
     with pytest.raises(ValueError, match="agree on in_channels and window"):
-        create_model("map_mean", members=[a, create_model("unet_fast", width=8, depth=1)])
+        create_model("map_mean", members=[a, unstated])
+    assert create_model("map_mean", members=[a, unstated], window=64).window == 64  # stated for the pair
     with pytest.raises(ValueError, match="map models only"):
         create_model("map_mean", members=[a, create_model("patch_cnn")])

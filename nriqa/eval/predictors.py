@@ -81,7 +81,7 @@ class CrossvalPredictor(ScorerPredictor):
 
         if len(ckpts) == 1:
             return Scorer.from_checkpoint(ckpts[0], window=window)
-        return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts]).eval(), window=window)
+        return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts], window).eval(), window=window)
 
     def scorer_for(self, item: Item):
         scene = item.record.scene

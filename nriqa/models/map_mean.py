@@ -25,12 +25,13 @@ class MapMean(nn.Module):
     """``(B,C,H,W)`` -> the mean of the members' ``(B,1,H,W)`` maps.
 
     ``members``: model specs (``{"name": ..., **kwargs}``, what shipped weights store) or built
-    networks (e.g. trained checkpoints' nets, for evaluation).
+    networks (e.g. trained checkpoints' nets, for evaluation). ``window``: the side of the pieces
+    the Scorer reads the mean in; by default the members' own, on which they must then agree.
     """
 
     output = "map"
 
-    def __init__(self, members: Sequence[Mapping | nn.Module]):
+    def __init__(self, members: Sequence[Mapping | nn.Module], window: int | None = None):
         super().__init__()
         if len(members) < 2:
             raise ValueError(f"map_mean averages at least two members, got {len(members)}")
@@ -38,7 +39,7 @@ class MapMean(nn.Module):
         if any(getattr(n, "output", None) != "map" for n in nets):
             raise ValueError("map_mean averages map models only (output 'map')")
         channels = {int(getattr(n, "in_channels", 3)) for n in nets}
-        windows = {int(getattr(n, "window", 0) or 0) for n in nets}
+        windows = {int(getattr(n, "window", 0) or 0) for n in nets} if window is None else {int(window)}
         if len(channels) > 1 or len(windows) > 1:
             raise ValueError(f"map_mean members must agree on in_channels and window, got {channels} and {windows}")
         self.members = nn.ModuleList(nets)
@@ -55,6 +56,8 @@ class MapMean(nn.Module):
 
 
 @register_model
-def map_mean(members: Sequence[Mapping] = ({"name": "unet_fast"}, {"name": "unet_fast"})) -> MapMean:
+def map_mean(
+    members: Sequence[Mapping] = ({"name": "unet_fast"}, {"name": "unet_fast"}), window: int | None = None
+) -> MapMean:
     """:class:`MapMean` of the given member specs (default: two ``unet_fast``)."""
-    return MapMean(members)
+    return MapMean(members, window)
