@@ -201,13 +201,10 @@ def export_checkpoint(
         info.update(_checkpoint_monitor(ckpt))
     else:
         net_spec = {"name": "map_mean", "members": [m[0] for m in members]}
-        try:
-            net = create_model(**net_spec)
+        try:  # the members' networks are built already; save_pretrained checks the spec rebuilds them
+            net = create_model("map_mean", members=[m[1] for m in members]).eval()
         except ValueError as exc:
             raise PretrainedError(f"{', '.join(map(str, paths))}: cannot average these networks ({exc})") from None
-        for member, (_, trained, _) in zip(net.members, members):
-            member.load_state_dict(trained.state_dict())
-        net.eval()
         info = {
             "checkpoint": [str(p) for p in paths],
             "epoch": [m[2].get("epoch") for m in members],
