@@ -32,6 +32,14 @@ def weights(tmp_path_factory) -> Path:
     return out
 
 
+def run_predict_py(cwd: Path, weights: Path, *args: str) -> subprocess.CompletedProcess:
+    """``python predict.py ARGS`` in a subprocess with the test weights (``fcnn_fast`` by name: these
+    24x30 images are below ``unet_fast``'s 32-pixel minimum); one torch thread."""
+    cmd = [sys.executable, str(REPO / "predict.py"), *args, "--weights-dir", str(weights), "--model", "fcnn_fast"]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}  # tiny images: one thread is faster on a shared CPU
+    return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+
+
 def rgb(h=24, w=30, scale=3.0, seed=0) -> np.ndarray:
     return (np.random.default_rng(seed).random((h, w, 3)) * scale).astype(np.float32)
 
@@ -138,21 +146,7 @@ def bad_inputs(root: Path) -> tuple[list[str], list[str]]:
 def test_cli_bad_files_do_not_stop_the_others(tmp_path, weights):
     good, bad = bad_inputs(tmp_path)
     files = [good[0], *bad[:4], *good[1:], *bad[4:]]
-    cmd = [
-        sys.executable,
-        str(REPO / "predict.py"),
-        *files,
-        "--weights-dir",
-        str(weights),
-        "--model",
-        "fcnn_fast",
-        "--json",
-        "--out",
-        "out",
-        "--no-figures",
-    ]
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}  # tiny images: one thread is faster on a shared CPU
-    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    proc = run_predict_py(tmp_path, weights, *files, "--json", "--out", "out", "--no-figures")
     assert proc.returncode == 1
     errors = proc.stderr.strip().splitlines()
     assert len(errors) == len(bad), proc.stderr  # one line per bad file, no traceback
@@ -224,19 +218,7 @@ def test_truncated_exr_in_a_json_batch(tmp_path, weights):
     write_exr(tmp_path / "a.exr", rgb())
     write_exr(tmp_path / "b.exr", rgb(seed=1))
     files = ["a.exr", cut.name, "b.exr"]
-    cmd = [
-        sys.executable,
-        str(REPO / "predict.py"),
-        *files,
-        "--weights-dir",
-        str(weights),
-        "--model",
-        "fcnn_fast",
-        "--json",
-        "--no-figures",
-    ]
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    proc = run_predict_py(tmp_path, weights, *files, "--json", "--no-figures")
     assert proc.returncode == 1
     rows = [json.loads(line) for line in proc.stdout.splitlines()]  # every stdout line is a result
     assert [r["path"] for r in rows] == ["a.exr", "b.exr"]
