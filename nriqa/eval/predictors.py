@@ -60,7 +60,7 @@ class CrossvalPredictor(ScorerPredictor):
 
     def __init__(self, run_dir: str | Path, window: int | None = None) -> None:
         runs = [Path(p) for p in str(run_dir).split("+")]
-        self.run_dir = runs[0]
+        self.run_dir = Path(run_dir)  # as given: several runs joined with "+" are named together in errors
         folds = []
         for run in runs:
             ckpts = {p.parents[1].name: p for p in sorted(run.glob("folds/*/checkpoints/last.ckpt"))}
