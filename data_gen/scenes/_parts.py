@@ -64,6 +64,48 @@ def random_color(rng: np.random.Generator, lo: float = 0.15, hi: float = 0.85) -
     return rng.uniform(lo, hi, 3).tolist()
 
 
+METALS = ("Au", "Cu", "Al", "Ag", "Cr")  # Mitsuba's conductor presets
+MATERIALS = ("diffuse", "plastic", "roughplastic", "roughconductor", "dielectric")
+
+
+def random_material(rng: np.random.Generator, kinds: tuple[str, ...] = MATERIALS) -> dict:
+    """A BSDF of one of ``kinds`` drawn from ``rng``, its colour, roughness, metal or index of refraction drawn too."""
+    kind = kinds[int(rng.integers(len(kinds)))]
+    if kind == "diffuse":
+        return diffuse(random_color(rng))
+    if kind == "plastic":
+        return {"type": "plastic", "diffuse_reflectance": rgb(random_color(rng))}
+    if kind == "roughplastic":
+        return {"type": kind, "diffuse_reflectance": rgb(random_color(rng)), "alpha": float(rng.uniform(0.05, 0.3))}
+    if kind == "roughconductor":
+        return {"type": kind, "material": str(rng.choice(METALS)), "alpha": float(rng.uniform(0.02, 0.3))}
+    if kind == "dielectric":
+        return {"type": kind, "int_ior": float(rng.uniform(1.3, 1.6))}
+    raise ValueError(f"unknown material kind {kind!r}; known: {', '.join(MATERIALS)}")
+
+
+SHAPES = ("sphere", "cube", "cylinder")
+
+
+def standing_shape(kind: str, x: float, z: float, size: float, bsdf: dict, turn: float = 0.0, height: float = 0.0):
+    """A ``sphere``/``cube``/``cylinder`` of half-width ``size`` resting on the floor y = 0 at ``(x, z)``.
+
+    ``turn``: degrees about the vertical axis (cube, cylinder); ``height``: the cylinder's (it stands up).
+    """
+    if kind == "sphere":
+        return {"type": "sphere", "center": [x, size, z], "radius": size, "bsdf": bsdf}
+    to_world = _t().translate([x, 0.0, z]).rotate([0, 1, 0], turn)
+    if kind == "cube":
+        return {"type": "cube", "to_world": to_world.translate([0, size, 0]).scale(size), "bsdf": bsdf}
+    if kind == "cylinder":  # Mitsuba's runs along z from 0 to 1: stood up along y
+        return {
+            "type": "cylinder",
+            "to_world": to_world.rotate([1, 0, 0], -90).scale([size, size, height]),
+            "bsdf": bsdf,
+        }
+    raise ValueError(f"unknown shape {kind!r}; known: {', '.join(SHAPES)}")
+
+
 def rectangle(to_world, bsdf: dict | None = None, emitter: dict | None = None) -> dict:
     shape: dict = {"type": "rectangle", "to_world": to_world}
     if bsdf is not None:

@@ -6,6 +6,7 @@ import numpy as np
 
 from data_gen.scenes import SceneSpec, register_scene
 from data_gen.scenes._parts import (
+    METALS,
     PATH_FAMILY,
     area_light,
     camera,
@@ -18,8 +19,6 @@ from data_gen.scenes._parts import (
     torus_mesh,
     transform,
 )
-
-METALS = ("Au", "Cu", "Al", "Ag", "Cr")
 
 
 def build(rng: np.random.Generator) -> dict:
