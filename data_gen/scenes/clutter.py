@@ -71,5 +71,7 @@ SPEC = register_scene(
         algorithms=PATH_FAMILY,
         max_depth=10,
         summary="a dozen small objects of mixed materials (glass and metal among them), exposure 2^U(-3,3)",
+        # rungs above these failed the v2 checks (docs/results/dataset_v2.md)
+        rung_limits={"path_ldsampler": 64, "path_multijitter": 256},
     )
 )

@@ -79,5 +79,7 @@ SPEC = register_scene(
         algorithms=PATH_FAMILY,
         max_depth=8,
         summary="night: small visible spherical lamps over a glossy floor, exposure 2^U(-3,3)",
+        # rungs above these failed the v2 checks (docs/results/dataset_v2.md)
+        rung_limits={"path_ldsampler": 64, "path_multijitter": 256},
     )
 )
