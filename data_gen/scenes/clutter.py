@@ -31,7 +31,7 @@ from data_gen.scenes._parts import (
 
 def _item(rng: np.random.Generator) -> dict:
     x, z, size = float(rng.uniform(-1.0, 1.0)), float(rng.uniform(-0.8, 0.6)), float(rng.uniform(0.06, 0.18))
-    kind = SHAPES[int(rng.integers(3))]
+    kind = SHAPES[int(rng.integers(len(SHAPES)))]
     bsdf = random_material(rng)
     turn, height = float(rng.uniform(0, 90)), float(rng.uniform(1.5, 4.0) * size)
     return standing_shape(kind, x, z, size, bsdf, turn, height)

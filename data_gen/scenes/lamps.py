@@ -31,7 +31,7 @@ from data_gen.scenes._parts import (
 
 def _object(rng: np.random.Generator) -> dict:
     """A ball, block or pillar on the floor: diffuse, rough plastic or rough metal."""
-    kind = SHAPES[int(rng.integers(3))]
+    kind = SHAPES[int(rng.integers(len(SHAPES)))]
     bsdf = random_material(rng, ("diffuse", "roughplastic", "roughconductor"))
     x, z, size = float(rng.uniform(-1.6, 1.6)), float(rng.uniform(-1.6, 0.8)), float(rng.uniform(0.15, 0.35))
     turn, height = float(rng.uniform(0, 90)), float(rng.uniform(0.5, 1.2))
