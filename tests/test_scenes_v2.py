@@ -24,7 +24,18 @@ from data_gen.scenes._exposure import emitter_strengths, exposure, scale_emitter
 from nriqa.io.exr import read_exr  # noqa: E402
 from nriqa.io.manifest import read_manifest  # noqa: E402
 
-NEW = ("photo", "dim_interior", "glass_floor", "dof", "fine_geometry", "exterior", "lamps", "clutter")
+NEW = (
+    "photo",
+    "dim_interior",
+    "glass_floor",
+    "dof",
+    "fine_geometry",
+    "exterior",
+    "lamps",
+    "clutter",
+    "textured_light",
+    "surfaces",
+)
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
 # independent reference does, so 16x the samples are not 4x the precision. v2's rung limit stops it.
@@ -39,9 +50,9 @@ def _variant():
         mi.set_variant("scalar_rgb")
 
 
-def test_fifteen_families_or_more_with_the_issue_15_ones():
+def test_seventeen_families_or_more_with_the_issue_15_ones():
     scenes = list_scenes()
-    assert len(scenes) >= 15 and set(NEW) <= set(scenes)
+    assert len(scenes) >= 17 and set(NEW) <= set(scenes)
     for name in NEW:
         spec = get_scene(name)
         assert spec.summary and "2^U(-3,3)" in spec.summary
@@ -99,12 +110,40 @@ def test_scale_emitters_scales_every_kind_and_refuses_unknown_ones():
     assert out["spot"]["intensity"]["value"] == [1, 1, 1]
     assert out["wall"] == scene["wall"] and scene["sun"]["irradiance"] == 4.0, "the input is not modified"
     assert emitter_strengths(out) == {"lamp": 1.0, "sky": 0.5, "sun": 2.0, "spot": 1.0}
-    with pytest.raises(ValueError, match="cannot scale emitter of type 'projector'"):
-        scale_emitters({"p": {"type": "projector", "scale": 1.0}}, 2.0)
+    with pytest.raises(ValueError, match="cannot scale emitter of type 'sunsky'"):
+        scale_emitters({"p": {"type": "sunsky"}}, 2.0)
     with pytest.raises(ValueError, match="without 'intensity'"):
         scale_emitters({"p": {"type": "point"}}, 2.0)
     with pytest.raises(ValueError, match="stops"):
         exposure(np.random.default_rng(0), -1)
+
+
+def test_scale_emitters_scales_projectors_and_textured_radiance():
+    """A projector's ``scale`` (1 when unset) and an area light whose radiance is a bitmap of an array."""
+    pattern = np.arange(12, dtype=np.float32).reshape(2, 2, 3)
+    scene = {
+        "projector": {"type": "projector", "irradiance": {"type": "rgb", "value": [1, 1, 1]}},
+        "screen": {
+            "type": "rectangle",
+            "emitter": {"type": "area", "radiance": {"type": "bitmap", "bitmap": mi.Bitmap(pattern)}},
+        },
+    }
+    out = scale_emitters(scene, 0.25)
+    assert out["projector"]["scale"] == 0.25 and out["projector"]["irradiance"] == scene["projector"]["irradiance"]
+    np.testing.assert_array_equal(np.asarray(out["screen"]["emitter"]["radiance"]["bitmap"]), pattern * 0.25)
+    np.testing.assert_array_equal(np.asarray(scene["screen"]["emitter"]["radiance"]["bitmap"]), pattern), "input kept"
+    assert emitter_strengths(out) == {"projector": 0.25, "screen": pytest.approx(5.5 * 0.25)}
+    assert mi.load_dict({"type": "scene", **out}) is not None
+
+
+def test_the_new_surfaces_load_in_mitsuba_and_unknown_ones_are_refused():
+    from data_gen.scenes.surfaces import SURFACES, surface
+
+    rng = np.random.default_rng(0)
+    for kind in SURFACES:
+        assert mi.load_dict(surface(rng, kind)) is not None, kind
+    with pytest.raises(ValueError, match="unknown surface 'velvet'"):
+        surface(rng, "velvet")
 
 
 def test_scale_emitters_knows_every_emitter_the_new_families_use():

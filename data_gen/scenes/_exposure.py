@@ -16,9 +16,12 @@ STRENGTH = {
     "spot": "intensity",
     "directional": "irradiance",
     "envmap": "scale",
+    "projector": "scale",
 }
+# Emitters whose strength property defaults to 1 (the others must set theirs).
+DEFAULT_ONE = ("envmap", "projector")
 # Mitsuba emitters this module cannot scale: met at the top level of a scene, they are refused.
-UNSCALABLE = ("projector", "directionalarea", "sunsky")
+UNSCALABLE = ("directionalarea", "sunsky")
 
 
 def exposure(rng: np.random.Generator, stops: float = 3.0) -> float:
@@ -28,12 +31,20 @@ def exposure(rng: np.random.Generator, stops: float = 3.0) -> float:
     return float(2.0 ** rng.uniform(-stops, stops))
 
 
-def _scaled(value, gain: float):
+def scaled(value, gain: float):
+    """An emitter strength (a float, an rgb dict or a bitmap texture holding its array) times ``gain``; a copy."""
     if isinstance(value, dict) and value.get("type") == "rgb":
         return {**value, "value": [float(v) * gain for v in value["value"]]}
+    if isinstance(value, dict) and value.get("type") == "bitmap" and "bitmap" in value:
+        import mitsuba as mi
+
+        data = np.asarray(value["bitmap"], dtype=np.float32) * np.float32(gain)
+        return {**value, "bitmap": mi.Bitmap(np.ascontiguousarray(data))}
     if isinstance(value, (int, float)):
         return float(value) * gain
-    raise ValueError(f"cannot scale emitter strength {value!r}: give a float or an rgb dict")
+    raise ValueError(
+        f"cannot scale emitter strength {value!r}: give a float, an rgb dict or a bitmap texture of an array"
+    )
 
 
 def _scale_emitter(emitter: dict, gain: float) -> dict:
@@ -41,10 +52,10 @@ def _scale_emitter(emitter: dict, gain: float) -> dict:
     if kind not in STRENGTH:
         raise ValueError(f"cannot scale emitter of type {kind!r}; known: {', '.join(STRENGTH)}")
     key = STRENGTH[kind]
-    default = 1.0 if kind == "envmap" else None  # envmap's scale defaults to 1; the others must be set
+    default = 1.0 if kind in DEFAULT_ONE else None
     if key not in emitter and default is None:
         raise ValueError(f"{kind} emitter without {key!r}: set it explicitly so that it can be scaled")
-    return {**emitter, key: _scaled(emitter.get(key, default), gain)}
+    return {**emitter, key: scaled(emitter.get(key, default), gain)}
 
 
 def scale_emitters(scene: dict, gain: float) -> dict:
@@ -72,5 +83,8 @@ def emitter_strengths(scene: dict) -> dict[str, float]:
             emitter = value["emitter"]
         if emitter is not None:
             strength = emitter.get(STRENGTH[emitter["type"]], 1.0)
-            found[key] = float(np.mean(strength["value"])) if isinstance(strength, dict) else float(strength)
+            if isinstance(strength, dict) and strength.get("type") == "bitmap":
+                found[key] = float(np.mean(np.asarray(strength["bitmap"], dtype=np.float64)))
+            else:
+                found[key] = float(np.mean(strength["value"])) if isinstance(strength, dict) else float(strength)
     return found
