@@ -143,5 +143,7 @@ SPEC = register_scene(
         algorithms=PATH_FAMILY,
         max_depth=8,
         summary="light with a pattern: a projector, a screen showing a photo, sun through slats; exposure 2^U(-3,3)",
+        # rungs above these failed the v2 checks (docs/results/dataset_v2.md)
+        rung_limits={"path_ldsampler": 64},
     )
 )
