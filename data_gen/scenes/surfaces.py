@@ -71,11 +71,11 @@ def surface(rng: np.random.Generator, kind: str) -> dict:
             "bsdf": random_material(rng, ("diffuse", "roughplastic")),
         }
     if kind == "cutout":
+        import mitsuba as mi
+
         holes = _grey_noise(rng, float(rng.uniform(1, 3)))
         level = float(rng.uniform(0.35, 0.6))
         opaque = (np.asarray(holes["bitmap"], dtype=np.float32) > level).astype(np.float32)
-        import mitsuba as mi
-
         return {
             "type": "mask",
             "opacity": {**holes, "bitmap": mi.Bitmap(np.ascontiguousarray(opaque)), "filter_type": "nearest"},
