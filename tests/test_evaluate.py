@@ -46,8 +46,22 @@ def test_perfect_predictor_gives_correlation_one_and_mae_zero(data):
     for row in comparison + per_scene:
         assert row["pcc"] == pytest.approx(1.0, abs=1e-9) and row["srocc"] == pytest.approx(1.0, abs=1e-6)
         assert row["tau"] == pytest.approx(1.0) and row["pixel_pcc"] == pytest.approx(1.0, abs=1e-6)
-    assert comparison[0]["mae"] == pytest.approx(0.0, abs=1e-12)
+    assert comparison[0]["mae"] == pytest.approx(0.0, abs=1e-12) and comparison[0]["bias"] == pytest.approx(0.0, abs=1e-12)
     assert comparison[1]["mae"] < 0.05  # logistic map fitted on the other scenes
+
+
+def test_bias_is_the_mean_signed_error_and_mae_its_absolute_mean(data):
+    class Offset(Oracle):
+        def predict(self, item):  # reads every image 0.05 too good and every second one 0.1 too bad besides
+            shift = 0.05 - 0.1 * (item.record.spp % 2 == 0)
+            return Prediction(item.true + shift, self.data.true_maps[item.record.id] + shift)
+
+    rows, pixels, _ = run_predictors(data, [Offset(data, "offset")], ["alpha"])
+    (pooled,), per_scene = summarise(rows, pixels, [Offset(data, "offset")], ["alpha"])
+    err = np.array([r["predicted"] - r["true"] for r in rows])
+    assert set(np.round(err, 6)) <= {0.05, -0.05} and len(set(np.round(err, 6))) == 2
+    assert pooled["bias"] == pytest.approx(err.mean(), abs=1e-9) and pooled["mae"] == pytest.approx(0.05, abs=1e-9)
+    assert per_scene[0]["bias"] == pytest.approx(pooled["bias"])
 
 
 def test_cli_writes_tables_and_figures(synthetic_dataset, tmp_path):

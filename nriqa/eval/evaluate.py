@@ -61,11 +61,12 @@ COMPARISON_COLUMNS = [
     "srocc",
     "tau",
     "mae",
+    "bias",
     "pixel_pcc",
     "scene_pcc",
     "scene_srocc",
 ]
-SCENE_COLUMNS = ["predictor", "scene", "n", "pcc", "srocc", "tau", "mae", "pixel_pcc"]
+SCENE_COLUMNS = ["predictor", "scene", "n", "pcc", "srocc", "tau", "mae", "bias", "pixel_pcc"]
 IMAGE_COLUMNS = ["predictor", "id", "scene", "variant", "algorithm", "spp", "true", "predicted", "mapped"]
 
 
@@ -192,8 +193,10 @@ def _stats(p: Predictor, rows: list[dict], pixel_parts: list) -> dict:
     mapped = np.array([r["mapped"] for r in rows], dtype=float)
     true = np.array([r["true"] for r in rows], dtype=float)
     out = {"n": int(np.isfinite(pred).sum()), **_correlations(signed(p, pred), true)}
-    err = np.abs(mapped - true)
-    out["mae"] = float(err[np.isfinite(err)].mean()) if np.isfinite(err).any() else math.nan
+    err = mapped - true
+    finite = np.isfinite(err)
+    out["mae"] = float(np.abs(err[finite]).mean()) if finite.any() else math.nan
+    out["bias"] = float(err[finite].mean()) if finite.any() else math.nan  # > 0: reads images too good
     parts = [x for x in pixel_parts if x is not None]
     out["pixel_pcc"] = math.nan
     if parts:
@@ -219,7 +222,7 @@ def _write_tables(
     header = (
         f"# Evaluation on {root}\n\n{n_images} test images, scenes: {', '.join(scenes)}. Image level: predicted "
         "vs true mean SSIM (correlations of the score signed so that higher = better; MAE on the SSIM scale, raw "
-        "scores through a monotone map fitted on the other scenes). Pixel level: PCC of the maps. `loso`: "
+        "scores through a monotone map fitted on the other scenes; bias: mean of predicted minus true, > 0 reads the images too good). Pixel level: PCC of the maps. `loso`: "
         "fitted leave-one-scene-out.\n\n"
     )
     write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
