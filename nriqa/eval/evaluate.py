@@ -222,8 +222,8 @@ def _write_tables(
     header = (
         f"# Evaluation on {root}\n\n{n_images} test images, scenes: {', '.join(scenes)}. Image level: predicted "
         "vs true mean SSIM (correlations of the score signed so that higher = better; MAE on the SSIM scale, raw "
-        "scores through a monotone map fitted on the other scenes; bias: mean of predicted minus true, > 0 reads the images too good). Pixel level: PCC of the maps. `loso`: "
-        "fitted leave-one-scene-out.\n\n"
+        "scores through a monotone map fitted on the other scenes; bias: mean of predicted minus true, > 0 reads "
+        "the images too good). Pixel level: PCC of the maps. `loso`: fitted leave-one-scene-out.\n\n"
     )
     write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
     write_text_atomic(out / "per_scene.md", header + markdown_table(per_scene, SCENE_COLUMNS))
