@@ -194,9 +194,9 @@ def _stats(p: Predictor, rows: list[dict], pixel_parts: list) -> dict:
     true = np.array([r["true"] for r in rows], dtype=float)
     out = {"n": int(np.isfinite(pred).sum()), **_correlations(signed(p, pred), true)}
     err = mapped - true
-    finite = np.isfinite(err)
-    out["mae"] = float(np.abs(err[finite]).mean()) if finite.any() else math.nan
-    out["bias"] = float(err[finite].mean()) if finite.any() else math.nan  # > 0: reads images too good
+    err = err[np.isfinite(err)]
+    out["mae"] = float(np.abs(err).mean()) if err.size else math.nan
+    out["bias"] = float(err.mean()) if err.size else math.nan  # > 0: reads images too good
     parts = [x for x in pixel_parts if x is not None]
     out["pixel_pcc"] = math.nan
     if parts:
