@@ -251,6 +251,30 @@ def test_window_reaches_the_folds_and_checkpoints(data, tmp_path):
     assert got != pytest.approx(next(r["predicted"] for r in whole if r["id"] == item.record.id), abs=1e-6)
 
 
+def test_checkpoints_joined_with_plus_score_with_the_mean_of_their_maps(data, tmp_path):
+    from nriqa.eval.predictors import build_predictors
+    from nriqa.inference.scorer import Scorer
+    from nriqa.models import create_model
+
+    nets, paths = [], []
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        nets.append(create_model("fcnn_fast").eval())
+        paths.append(tmp_path / f"s{seed}" / "checkpoints" / "last.ckpt")
+        paths[-1].parent.mkdir(parents=True)
+        state = {f"net.{k}": v for k, v in nets[-1].state_dict().items()}
+        torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, paths[-1])
+    pair, single = build_predictors([], [f"{paths[0]}+{paths[1]}", str(paths[0])], "none")
+    assert pair.name == "s0/last+s1/last" and single.name == "s0/last"
+    rows, _, _ = run_predictors(data, [pair, single], ["alpha"])
+    item = next(it for it in data.items if it.record.scene == "alpha")
+    maps = [Scorer(net)(item.ldr, hdr=False).map for net in nets]
+    got = {r["predictor"]: r["predicted"] for r in rows if r["id"] == item.record.id}
+    assert got[pair.name] == pytest.approx(float(np.clip((maps[0] + maps[1]) / 2, 0, 1).mean()), abs=1e-5)
+    assert got[single.name] == pytest.approx(float(np.clip(maps[0], 0, 1).mean()), abs=1e-5)
+    assert got[pair.name] != pytest.approx(got[single.name], abs=1e-4)
+
+
 def test_evaluation_on_the_tiny_preset(tiny, tmp_path):
     main(
         [

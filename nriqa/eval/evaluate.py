@@ -288,7 +288,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("data", help="dataset root (with manifest.json) or an external folder of renders")
     parser.add_argument("--out", required=True, help="output folder for tables and figures")
     parser.add_argument("--model", action="append", default=[], help="shipped weights name (repeatable)")
-    parser.add_argument("--checkpoint", action="append", default=[], help="training checkpoint (repeatable)")
+    parser.add_argument(
+        "--checkpoint",
+        action="append",
+        default=[],
+        help="training checkpoint (repeatable); A.ckpt+B.ckpt scores with the mean of their maps (runs of one recipe)",
+    )
     parser.add_argument(
         "--crossval",
         action="append",

@@ -48,6 +48,17 @@ class ScorerPredictor(Predictor):
         return Prediction(float(result.score), torch.as_tensor(result.map).float())
 
 
+def checkpoints_scorer(ckpts: list[str | Path], window: int | None = None):
+    """The Scorer of one checkpoint, or of the mean of several checkpoints' maps (:class:`MapMean`)."""
+    from nriqa.inference.scorer import Scorer
+    from nriqa.models.map_mean import MapMean
+    from nriqa.training.checkpoint import load_net_from_checkpoint
+
+    if len(ckpts) == 1:
+        return Scorer.from_checkpoint(ckpts[0], window=window)
+    return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts], window).eval(), window=window)
+
+
 class CrossvalPredictor(ScorerPredictor):
     """A cross-validation run (``nriqa-crossval``) as one predictor.
 
@@ -70,18 +81,8 @@ class CrossvalPredictor(ScorerPredictor):
         scenes = sorted(set.intersection(*(set(f) for f in folds)))
         if not scenes:
             raise EvaluationError(f"{run_dir}: the runs hold out no scene in common")
-        self.scorers = {scene: self._scorer([f[scene] for f in folds], window) for scene in scenes}
+        self.scorers = {scene: checkpoints_scorer([f[scene] for f in folds], window) for scene in scenes}
         super().__init__("+".join(run.name for run in runs) + "-cv", next(iter(self.scorers.values())))
-
-    @staticmethod
-    def _scorer(ckpts: list[Path], window: int | None):
-        from nriqa.inference.scorer import Scorer
-        from nriqa.models.map_mean import MapMean
-        from nriqa.training.checkpoint import load_net_from_checkpoint
-
-        if len(ckpts) == 1:
-            return Scorer.from_checkpoint(ckpts[0], window=window)
-        return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts], window).eval(), window=window)
 
     def scorer_for(self, item: Item):
         scene = item.record.scene
@@ -124,7 +125,8 @@ def build_predictors(
 
     ``baselines`` is ``all``, ``none`` or a comma list of :func:`nriqa.eval.baselines.baseline_names`.
     ``window`` applies to checkpoints and cross-validation folds (``None``: what their networks
-    state); shipped weights keep the window their spec states.
+    state); shipped weights keep the window their spec states. A checkpoint may join several with
+    ``+`` (runs of one recipe with different seeds): it is then scored by the mean of their maps.
 
     Raises:
         EvaluationError: nothing to evaluate, or two predictors with the same name.
@@ -135,8 +137,12 @@ def build_predictors(
         from nriqa.inference.scorer import Scorer
 
         predictors += [ScorerPredictor(name, Scorer.from_pretrained(name)) for name in models]
-        names = checkpoint_names(checkpoints)
-        predictors += [ScorerPredictor(n, Scorer.from_checkpoint(c, window=window)) for n, c in zip(names, checkpoints)]
+        joined = [c.split("+") for c in checkpoints]
+        paths = list(dict.fromkeys(p for parts in joined for p in parts))
+        short = dict(zip(paths, checkpoint_names(paths)))
+        for parts in joined:
+            name = "+".join(short[p] for p in parts)
+            predictors.append(ScorerPredictor(name, checkpoints_scorer(parts, window)))
     predictors += [create_baseline(n) for n in _baseline_list(baselines)]
     if not predictors:
         raise EvaluationError("nothing to evaluate: give --model, --checkpoint or --baselines")
