@@ -273,6 +273,9 @@ def test_checkpoints_joined_with_plus_score_with_the_mean_of_their_maps(data, tm
     assert got[pair.name] == pytest.approx(float(np.clip((maps[0] + maps[1]) / 2, 0, 1).mean()), abs=1e-5)
     assert got[single.name] == pytest.approx(float(np.clip(maps[0], 0, 1).mean()), abs=1e-5)
     assert got[pair.name] != pytest.approx(got[single.name], abs=1e-4)
+    plus = tmp_path / "a+b.ckpt"  # a file whose name holds "+" is one checkpoint
+    plus.write_bytes(paths[0].read_bytes())
+    assert build_predictors([], [str(plus)], "none")[0].name == "a+b"
 
 
 def test_evaluation_on_the_tiny_preset(tiny, tmp_path):

@@ -137,7 +137,7 @@ def build_predictors(
         from nriqa.inference.scorer import Scorer
 
         predictors += [ScorerPredictor(name, Scorer.from_pretrained(name)) for name in models]
-        joined = [c.split("+") for c in checkpoints]
+        joined = [[c] if Path(c).is_file() else c.split("+") for c in checkpoints]  # a file named with "+" stays one
         paths = list(dict.fromkeys(p for parts in joined for p in parts))
         short = dict(zip(paths, checkpoint_names(paths)))
         for parts in joined:
