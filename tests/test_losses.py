@@ -92,6 +92,25 @@ def test_joint_is_sum_of_terms():
     assert JointLoss()(t, t).item() == pytest.approx(1e-3, abs=1e-6)
 
 
+def test_joint_mean_term_compares_each_examples_mean():
+    g = torch.Generator().manual_seed(3)
+    t = torch.rand(4, 1, 8, 8, generator=g)
+    shuffled = t.flatten(1)[:, torch.randperm(64, generator=g)].reshape(t.shape)  # same means, other pixels
+    plain, with_mean = JointLoss(signed=True), JointLoss(signed=True, mean_weight=2.0)
+    torch.testing.assert_close(
+        with_mean(shuffled, t), plain(shuffled, t) + 2.0 * charbonnier(t.mean((1, 2, 3)), t.mean((1, 2, 3)))
+    )
+    offset = t + torch.tensor([0.1, -0.1, 0.0, 0.0]).view(4, 1, 1, 1)  # two examples' means off by 0.1
+    extra = with_mean(offset, t) - plain(offset, t)
+    expected = 2.0 * torch.sqrt(torch.tensor([0.01, 0.01, 0.0, 0.0]) + 1e-6).mean()
+    torch.testing.assert_close(extra, expected)
+    pred = offset.clone().requires_grad_(True)
+    (with_mean(pred, t) - plain(pred, t)).backward()
+    assert pred.grad[0].sum() > 0 > pred.grad[1].sum()  # pushes each mean back towards its target's
+    with pytest.raises(ValueError, match="mean_weight"):
+        JointLoss(mean_weight=-1.0)
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_shape_mismatch_and_empty(name):
     loss = create_loss(name)
