@@ -117,3 +117,34 @@ def test_bad_display_is_refused(kwargs):
 def test_bad_mix_is_refused(kwargs):
     with pytest.raises(ValueError):
         DisplayMix(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "spec, display",
+    [
+        ("tonemap", Display("tonemap")),
+        ("tonemap:8", Display("tonemap", bits=8)),
+        ("srgb", Display("srgb")),
+        ("SRGB+2", Display("srgb", 2.0)),
+        ("gamma22-1.5:8", Display("gamma22", -1.5, 8)),
+    ],
+)
+def test_display_spec_parses_and_prints_back(spec, display):
+    assert Display.parse(spec) == display
+    assert Display.parse(str(display)) == display
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("log", "CURVE[+-STOPS][:BITS]"),
+        ("srgb+", "CURVE[+-STOPS][:BITS]"),
+        ("srgb:0", "bits must be in 1..16"),
+        ("tonemap+1", "no exposure"),
+        ("srgb 2", "CURVE[+-STOPS][:BITS]"),
+    ],
+)
+def test_bad_display_spec_is_one_line(spec, message):
+    with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("+", r"\+")) as exc:
+        Display.parse(spec)
+    assert "\n" not in str(exc.value)

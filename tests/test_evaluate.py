@@ -10,10 +10,12 @@ import pytest
 import torch
 from PIL import Image
 
+from nriqa.core.display import Display, apply_display, key_exposure
+from nriqa.core.ssim import ssim_map
 from nriqa.eval.baselines import Item, Prediction, Predictor
 from nriqa.eval.dataset import load_dataset, records_of
 from nriqa.eval.evaluate import main, run_predictors, summarise
-from nriqa.io.exr import write_exr
+from nriqa.io.exr import read_exr, write_exr
 from nriqa.io.external import ExternalError, import_external, scan_external
 from nriqa.io.imread import load_ldr as load_display
 from nriqa.io.manifest import read_manifest
@@ -30,6 +32,14 @@ class Oracle(Predictor):
 
     def predict(self, item: Item) -> Prediction:
         return Prediction(self.factor * item.true, self.factor * self.data.true_maps[item.record.id])
+
+
+def _save_checkpoint(path: Path, net: torch.nn.Module, spec: dict | None = None) -> Path:
+    """A minimal training checkpoint of ``net`` (what :func:`load_net_from_checkpoint` reads) at ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    state = {f"net.{k}": v for k, v in net.state_dict().items()}
+    torch.save({"hyper_parameters": {"net": spec or {"name": "fcnn_fast"}}, "state_dict": state}, path)
+    return path
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +87,8 @@ def test_cli_writes_tables_and_figures(synthetic_dataset, tmp_path):
         "maps_dual_buffer_beta.png",
         "monotone.md",
         "monotone.csv",
+        "by_spp.md",
+        "by_spp.csv",
     ):
         assert (tmp_path / name).is_file(), name
     table = (tmp_path / "comparison.md").read_text()
@@ -208,10 +220,7 @@ def test_crossval_run_scores_each_scene_with_the_fold_that_held_it_out(data, tmp
     for seed, scene in enumerate(["alpha", "beta"]):
         torch.manual_seed(seed)
         nets[scene] = create_model("fcnn_fast").eval()
-        ckpt = tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt"
-        ckpt.parent.mkdir(parents=True)
-        state = {f"net.{k}": v for k, v in nets[scene].state_dict().items()}
-        torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, ckpt)
+        _save_checkpoint(tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt", nets[scene])
     p = CrossvalPredictor(tmp_path / "run")
     assert p.name == "run-cv" and p.scale == "ssim"
     rows, _, _ = run_predictors(data, [p], ["alpha", "beta"])
@@ -234,12 +243,9 @@ def test_window_reaches_the_folds_and_checkpoints(data, tmp_path):
 
     torch.manual_seed(0)
     net = create_model("unet_fast", width=8, depth=1).eval()
-    state = {f"net.{k}": v for k, v in net.state_dict().items()}
+    spec = {"name": "unet_fast", "width": 8, "depth": 1}
     for scene in ("alpha", "beta"):
-        ckpt = tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt"
-        ckpt.parent.mkdir(parents=True)
-        spec = {"name": "unet_fast", "width": 8, "depth": 1}
-        torch.save({"hyper_parameters": {"net": spec}, "state_dict": state}, ckpt)
+        ckpt = _save_checkpoint(tmp_path / "run" / "folds" / scene / "checkpoints" / "last.ckpt", net, spec)
     run, ckpt = str(tmp_path / "run"), str(ckpt)
     windowed = build_predictors([], [ckpt], "none", [run], window=32)
     assert all(s.window == 32 for s in windowed[0].scorers.values()) and windowed[1].scorer.window == 32
@@ -260,10 +266,7 @@ def test_checkpoints_joined_with_plus_score_with_the_mean_of_their_maps(data, tm
     for seed in (0, 1):
         torch.manual_seed(seed)
         nets.append(create_model("fcnn_fast").eval())
-        paths.append(tmp_path / f"s{seed}" / "checkpoints" / "last.ckpt")
-        paths[-1].parent.mkdir(parents=True)
-        state = {f"net.{k}": v for k, v in nets[-1].state_dict().items()}
-        torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, paths[-1])
+        paths.append(_save_checkpoint(tmp_path / f"s{seed}" / "checkpoints" / "last.ckpt", nets[-1]))
     pair, single = build_predictors([], [f"{paths[0]}+{paths[1]}", str(paths[0])], "none")
     assert pair.name == "s0/last+s1/last" and single.name == "s0/last"
     rows, _, _ = run_predictors(data, [pair, single], ["alpha"])
@@ -306,12 +309,8 @@ def test_crossval_runs_joined_with_plus_score_with_the_mean_of_their_folds(data,
     for seed, run in enumerate(["s0", "s1"]):
         torch.manual_seed(seed)
         nets[run] = create_model("fcnn_fast").eval()
-        state = {f"net.{k}": v for k, v in nets[run].state_dict().items()}
-        scenes = ("alpha", "beta") if run == "s0" else ("alpha",)
-        for scene in scenes:
-            ckpt = tmp_path / run / "folds" / scene / "checkpoints" / "last.ckpt"
-            ckpt.parent.mkdir(parents=True)
-            torch.save({"hyper_parameters": {"net": {"name": "fcnn_fast"}}, "state_dict": state}, ckpt)
+        for scene in ("alpha", "beta") if run == "s0" else ("alpha",):
+            _save_checkpoint(tmp_path / run / "folds" / scene / "checkpoints" / "last.ckpt", nets[run])
     p = CrossvalPredictor(f"{tmp_path / 's0'}+{tmp_path / 's1'}")
     assert p.name == "s0+s1-cv" and set(p.scorers) == {"alpha"}  # only the scenes both runs hold out
     rows, _, _ = run_predictors(data, [p], ["alpha"])
@@ -321,3 +320,63 @@ def test_crossval_runs_joined_with_plus_score_with_the_mean_of_their_folds(data,
     assert got == pytest.approx(float(np.clip((maps[0] + maps[1]) / 2, 0, 1).mean()), abs=1e-5)
     with pytest.raises(EvaluationError, match="no fold holds scene beta out"):
         run_predictors(data, [p], ["beta"])
+    (tmp_path / "s0").rename(tmp_path / "a+b")  # a run folder whose name holds "+" is one run
+    assert set(CrossvalPredictor(tmp_path / "a+b").scorers) == {"alpha", "beta"}
+
+
+def test_display_shows_image_twin_and_reference_alike_and_measures_after_it(synthetic_dataset):
+    root, records = records_of(synthetic_dataset)
+    display = Display.parse("srgb+1:8")
+    shown = load_dataset(root, records, display=display)
+    item = next(it for it in shown.items if it.record.scene == "beta" and it.record.spp == 4)
+    linear = {
+        p: torch.from_numpy(read_exr(root / p)).permute(2, 0, 1) for p in (item.record.path, item.record.reference)
+    }
+    twin_path = next(r.path for r in records if r.id == item.record.twin)
+    key = key_exposure(linear[item.record.reference])
+    ref = apply_display(linear[item.record.reference], display, key)
+    assert torch.equal(shown.refs[item.record.reference], ref)
+    assert torch.equal(item.ldr, apply_display(linear[item.record.path], display, key))
+    twin = apply_display(torch.from_numpy(read_exr(root / twin_path)).permute(2, 0, 1), display, key)
+    assert torch.equal(item.twin, twin)
+    assert item.true == pytest.approx(float(ssim_map(item.ldr[None], ref[None]).mean()), abs=1e-7)
+    tone_mapped = load_dataset(root, records)
+    same = next(it for it in tone_mapped.items if it.record.id == item.record.id)
+    assert item.true != pytest.approx(same.true, abs=1e-3)  # the display changes the truth
+
+
+def test_cli_display_names_itself_and_plain_tone_map_changes_nothing(synthetic_dataset, tmp_path):
+    base = [str(synthetic_dataset), "--baselines", "dual_buffer", "--no-figures"]
+    main([*base, "--out", str(tmp_path / "plain")])
+    main([*base, "--out", str(tmp_path / "tonemap"), "--display", "tonemap"])
+    main([*base, "--out", str(tmp_path / "srgb"), "--display", "gamma22-1"])
+    assert (tmp_path / "plain" / "images.csv").read_text() == (tmp_path / "tonemap" / "images.csv").read_text()
+    assert (tmp_path / "plain" / "images.csv").read_text() != (tmp_path / "srgb" / "images.csv").read_text()
+    assert "display `gamma22-1`" in (tmp_path / "srgb" / "comparison.md").read_text()
+
+
+@pytest.mark.parametrize("display, message", [("log", "CURVE[+-STOPS][:BITS]"), ("srgb", "needs linear EXR renders")])
+def test_cli_display_errors_are_one_line(external, tmp_path, display, message):
+    with pytest.raises(SystemExit) as exc:
+        main([str(external), "--out", str(tmp_path / "ev"), "--display", display, "--baselines", "dual_buffer"])
+    assert str(exc.value).startswith("error: ") and message in str(exc.value) and "\n" not in str(exc.value)
+    assert not (tmp_path / "ev" / "comparison.md").exists()
+
+
+def test_by_spp_bands_hold_each_image_once_with_its_error():
+    from nriqa.eval.by_spp import by_spp
+
+    rows = [
+        {"predictor": "p", "spp": spp, "true": 0.5, "mapped": 0.5 + shift, "predicted": 0.0}
+        for spp, shift in ((2, 0.1), (8, 0.3), (16, -0.2), (1024, 0.0), (1024, math.nan))
+    ]
+    bands = {b["spp"]: b for b in by_spp(rows, ["p"])}
+    assert list(bands) == ["1-8", "9-64", ">=65"]
+    assert (
+        bands["1-8"]["n"] == 2
+        and bands["1-8"]["bias"] == pytest.approx(0.2)
+        and bands["1-8"]["mae"] == pytest.approx(0.2)
+    )
+    assert bands["9-64"]["bias"] == pytest.approx(-0.2) and bands["9-64"]["mae"] == pytest.approx(0.2)
+    assert bands[">=65"]["n"] == 1 and bands[">=65"]["bias"] == 0.0  # a NaN score is left out, not averaged in
+    assert by_spp(rows, ["other"]) == []

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import torch
 from kornia.color import linear_rgb_to_rgb
@@ -33,6 +34,8 @@ CURVES = ("tonemap", "srgb", "gamma22")
 MIDDLE_GREY = 0.18
 # Luminance floor of the log-average, so black pixels do not send it to -inf (Reinhard's delta).
 _LOG_EPS = 1e-6
+# CURVE, then optional signed stops, then optional :BITS -- "srgb", "srgb+2", "gamma22-1.5:8", "tonemap:8".
+_SPEC = re.compile(r"^(?P<curve>[a-z0-9]+)(?P<stops>[+-]\d+(?:\.\d+)?)?(?::(?P<bits>\d+))?$")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,6 +59,29 @@ class Display:
             raise ValueError(f"display bits must be in 1..16 or None, got {self.bits}")
         if not math.isfinite(self.stops):
             raise ValueError(f"display stops must be finite, got {self.stops}")
+
+    @classmethod
+    def parse(cls, spec: str) -> Display:
+        """A display from ``CURVE[+-STOPS][:BITS]``: ``srgb``, ``srgb+2``, ``gamma22-1.5:8``, ``tonemap:8``.
+
+        Raises:
+            ValueError: one line naming the spec and the form it needs.
+        """
+        match = _SPEC.match(spec.strip().lower())
+        if match is None or match["curve"] not in CURVES:
+            raise ValueError(
+                f"display {spec!r}: give CURVE[+-STOPS][:BITS] with CURVE one of {', '.join(CURVES)} "
+                "(e.g. srgb, srgb+2, gamma22-1:8)"
+            )
+        stops = float(match["stops"] or 0.0)
+        if match["curve"] == "tonemap" and stops:
+            raise ValueError(f"display {spec!r}: the tone map has no exposure; drop the stops")
+        return cls(match["curve"], stops, int(match["bits"]) if match["bits"] else None)
+
+    def __str__(self) -> str:
+        """The spec :meth:`parse` reads back."""
+        stops = f"{self.stops:+g}" if self.stops else ""
+        return f"{self.curve}{stops}{f':{self.bits}' if self.bits is not None else ''}"
 
 
 def _clean(hdr: Tensor) -> Tensor:

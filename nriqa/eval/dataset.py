@@ -4,6 +4,11 @@ A dataset root with a manifest (:mod:`nriqa.io.manifest`) or an external folder 
 (:mod:`nriqa.io.external`) gives records; :func:`load_dataset` loads their ``test`` images as
 display-referred LDR (:func:`nriqa.io.imread.load_ldr`) and computes the truth: the SSIM map of
 each image against its reference (:func:`nriqa.core.ssim.ssim_map`) and its mean.
+
+With a ``display`` (:class:`nriqa.core.display.Display`) linear EXR renders are shown through it
+instead of the tone map, the image, its twin and its reference alike with the reference's key
+exposure, and the truth is measured after it -- the SSIM a user of that display pipeline would
+measure, as training computes its targets (issue 15).
 """
 
 from __future__ import annotations
@@ -14,11 +19,12 @@ from pathlib import Path
 
 import torch
 
+from nriqa.core.display import Display, apply_display, key_exposure
 from nriqa.core.ssim import ssim_map
 from nriqa.errors import NriqaError
 from nriqa.eval.baselines import Item
 from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE, scan_external
-from nriqa.io.imread import load_ldr
+from nriqa.io.imread import load_ldr, read_image
 from nriqa.io.manifest import MANIFEST_NAME, Record, read_manifest
 
 
@@ -47,32 +53,62 @@ def records_of(
     return root, scan_external(root, pattern, reference)
 
 
-def load_dataset(root: Path, records: list[Record], algorithms: str = "*", twins: bool = True) -> Dataset:
+class _Loader:
+    """Loads an image as the evaluation sees it: :func:`load_ldr`, or linear EXR through a display."""
+
+    def __init__(self, root: Path, display: Display | None) -> None:
+        self.root, self.display = root, display
+        self.keys: dict[str, torch.Tensor] = {}
+
+    def __call__(self, path: str, reference: str) -> torch.Tensor:
+        if self.display is None:
+            return load_ldr(self.root / path)
+        linear = self._linear(path)
+        if reference not in self.keys:
+            self.keys[reference] = key_exposure(linear if path == reference else self._linear(reference))
+        return apply_display(linear, self.display, self.keys[reference])
+
+    def _linear(self, path: str) -> torch.Tensor:
+        img, is_hdr = read_image(self.root / path)
+        if not is_hdr:
+            raise EvaluationError(
+                f"{self.root / path}: --display needs linear EXR renders, this one is already displayed; "
+                "leave --display out"
+            )
+        return torch.from_numpy(img).permute(2, 0, 1).contiguous()
+
+
+def load_dataset(
+    root: Path, records: list[Record], algorithms: str = "*", twins: bool = True, display: Display | None = None
+) -> Dataset:
     """Load the ``test`` images of the algorithms matching ``algorithms`` (comma-separated globs).
 
     Each image's reference is loaded once; with ``twins`` each image's twin too (the dual-buffer
-    baselines need it). Items keep the order of ``records``.
+    baselines need it). Items keep the order of ``records``. ``display``: show linear renders
+    through it (module docstring); ``None`` loads as :func:`load_ldr` does.
 
     Raises:
-        EvaluationError: no test image left, or an image and its reference differ in size.
+        EvaluationError: no test image left, an image and its reference differ in size, or a
+            ``display`` meets an image that is not linear EXR.
     """
     patterns = [p.strip() for p in algorithms.split(",") if p.strip()]
     by_id = {r.id: r for r in records}
     tests = [r for r in records if r.role == "test" and any(fnmatch.fnmatchcase(r.algorithm, p) for p in patterns)]
     if not tests:
         raise EvaluationError(f"{root}: no test images (algorithms {algorithms!r}); check the dataset or --algorithms")
+    load = _Loader(root, display)
     refs: dict[str, torch.Tensor] = {}
     items, true_maps = [], {}
     for rec in tests:
         if rec.reference not in refs:
-            refs[rec.reference] = load_ldr(root / rec.reference)
-        ldr, ref = load_ldr(root / rec.path), refs[rec.reference]
+            refs[rec.reference] = load(rec.reference, rec.reference)
+        ldr, ref = load(rec.path, rec.reference), refs[rec.reference]
         if ldr.shape != ref.shape:
             raise EvaluationError(
                 f"{root / rec.path} is {tuple(ldr.shape[1:])} but its reference is {tuple(ref.shape[1:])}"
             )
         has_twin = twins and rec.twin and rec.twin in by_id
-        twin = load_ldr(root / by_id[rec.twin].path) if has_twin else None
+        twin = load(by_id[rec.twin].path, rec.reference) if has_twin else None
         true_map = ssim_map(ldr[None], ref[None])[0, 0]
         true_maps[rec.id] = true_map
         items.append(Item(rec, ldr, twin, float(true_map.mean())))

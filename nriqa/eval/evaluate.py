@@ -9,7 +9,9 @@ every predictor -- shipped weights, checkpoints and cross-validation runs throug
 :mod:`nriqa.eval.predictors`, and the baselines of :mod:`nriqa.eval.baselines`.
 
 * True score: the mean of :func:`nriqa.core.ssim.ssim_map` of the tone-mapped image against its
-  tone-mapped reference; true map: that SSIM map.
+  tone-mapped reference; true map: that SSIM map. ``--display srgb+2:8`` (a
+  :class:`nriqa.core.display.Display`) shows linear EXR renders through that pipeline instead, the
+  image and its reference alike, and every predictor reads and the truth is measured after it.
 * Image level, per scene and pooled over scenes: PCC, SROCC, Kendall tau of the predicted vs the
   true score (:mod:`nriqa.core.correlation`), taken on the score signed so that higher = better, and
   the MAE of the predicted vs the true score. Predictors on the SSIM scale enter the MAE as they
@@ -21,6 +23,7 @@ every predictor -- shipped weights, checkpoints and cross-validation runs throug
 
 Writes ``comparison.{csv,md}`` (rows = predictors), ``per_scene.{csv,md}``, ``images.csv``,
 ``monotone.{csv,md}`` (whether SSIM-scale predictions rise with spp, :mod:`nriqa.eval.monotone`),
+``by_spp.{csv,md}`` (MAE and bias per band of spp, :mod:`nriqa.eval.by_spp`),
 ``scatter.png`` and ``maps_<predictor>_<scene>.png`` (noisy | predicted | true | reference)
 (:mod:`nriqa.eval.plots`).
 """
@@ -36,9 +39,12 @@ import numpy as np
 import torch
 
 from nriqa.core.correlation import pcc
+from nriqa.core.display import Display
 from nriqa.core.sampling import metric_samples
 from nriqa.eval.baselines import Item, Prediction, Predictor, baseline_names
 from nriqa.eval.baselines.mapping import MonotoneMap
+from nriqa.eval.by_spp import COLUMNS as SPP_COLUMNS
+from nriqa.eval.by_spp import by_spp
 from nriqa.eval.dataset import Dataset, EvaluationError, load_dataset, records_of
 from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
 from nriqa.eval.plots import figure_items, plot_maps, plot_scatter
@@ -214,19 +220,29 @@ def _write_tables(
     n_images: int,
     scenes: list[str],
     monotone: tuple[list[dict], list[dict]] | None = None,
+    display: Display | None = None,
 ) -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "comparison.csv", comparison, COMPARISON_COLUMNS)
     write_csv(out / "per_scene.csv", per_scene, SCENE_COLUMNS)
     write_csv(out / "images.csv", rows, IMAGE_COLUMNS)
+    bands = by_spp(rows, [c["predictor"] for c in comparison])
+    write_csv(out / "by_spp.csv", bands, SPP_COLUMNS)
+    shown = f"Shown through the display `{display}` (image and reference alike). " if display else ""
     header = (
-        f"# Evaluation on {root}\n\n{n_images} test images, scenes: {', '.join(scenes)}. Image level: predicted "
+        f"# Evaluation on {root}\n\n{n_images} test images, scenes: {', '.join(scenes)}. {shown}Image level: predicted "
         "vs true mean SSIM (correlations of the score signed so that higher = better; MAE on the SSIM scale, raw "
         "scores through a monotone map fitted on the other scenes; bias: mean of predicted minus true, > 0 reads "
         "the images too good). Pixel level: PCC of the maps. `loso`: fitted leave-one-scene-out.\n\n"
     )
     write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
     write_text_atomic(out / "per_scene.md", header + markdown_table(per_scene, SCENE_COLUMNS))
+    write_text_atomic(
+        out / "by_spp.md",
+        header
+        + "By band of samples per pixel (`true`: the band's mean true SSIM).\n\n"
+        + markdown_table(bands, SPP_COLUMNS),
+    )
     if monotone is not None:
         per_ladder, summary = monotone
         write_csv(out / "monotone.csv", per_ladder, LADDER_COLUMNS)
@@ -263,10 +279,16 @@ def evaluate(
     pattern: str = DEFAULT_PATTERN,
     reference: str = DEFAULT_REFERENCE,
     figures: bool = True,
+    display: Display | None = None,
 ) -> tuple[list[dict], list[dict]]:
-    """Run the whole evaluation and write its tables and figures into ``out``; returns ``(comparison, per_scene)``."""
+    """Run the whole evaluation and write its tables and figures into ``out``; returns ``(comparison, per_scene)``.
+
+    ``display``: show linear renders through it (:mod:`nriqa.eval.dataset`); ``None`` or the plain
+    tone map load images as prediction does.
+    """
+    display = None if display == Display() else display
     root, records = records_of(data_dir, pattern, reference)
-    data = load_dataset(root, records, algorithms)
+    data = load_dataset(root, records, algorithms, display=display)
     present = sorted({it.record.scene for it in data.items})
     unknown = [s for s in scenes or [] if s not in present]
     if unknown:
@@ -277,7 +299,7 @@ def evaluate(
     n_images = len([r for r in rows if r["predictor"] == predictors[0].name])
     ssim_names = [p.name for p in predictors if p.scale == "ssim"]
     monotone = monotonicity(rows, ssim_names) if ssim_names else None
-    _write_tables(Path(out), root, rows, comparison, per_scene, n_images, eval_scenes, monotone)
+    _write_tables(Path(out), root, rows, comparison, per_scene, n_images, eval_scenes, monotone, display)
     if figures:
         _write_figures(Path(out), data, rows, maps, predictors, eval_scenes)
     return comparison, per_scene
@@ -321,6 +343,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--reference", default=DEFAULT_REFERENCE, help="external folders: reference glob or highest:ALGO"
     )
+    parser.add_argument(
+        "--display",
+        default=None,
+        help="show linear EXR renders through this display pipeline, image and reference alike, before "
+        "scoring and measuring: CURVE[+-STOPS][:BITS], CURVE tonemap|srgb|gamma22, stops from the "
+        "reference's key exposure, e.g. srgb, srgb+2, gamma22-1:8 (default: the package tone map)",
+    )
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     parser.add_argument(
         "--threads",
@@ -337,9 +366,18 @@ def main(argv: list[str] | None = None) -> None:
     threads = torch.get_num_threads()
     torch.set_num_threads(max(1, args.threads))
     try:
+        display = Display.parse(args.display) if args.display is not None else None
         predictors = build_predictors(args.model, args.checkpoint, args.baselines, args.crossval, args.window)
         comparison, _ = evaluate(
-            args.data, args.out, predictors, scenes, args.algorithms, args.pattern, args.reference, not args.no_figures
+            args.data,
+            args.out,
+            predictors,
+            scenes,
+            args.algorithms,
+            args.pattern,
+            args.reference,
+            not args.no_figures,
+            display,
         )
     except (EvaluationError, ExternalError, ManifestError, ImageReadError, CheckpointError) as exc:
         sys.exit(f"error: {exc}")

@@ -48,6 +48,11 @@ class ScorerPredictor(Predictor):
         return Prediction(float(result.score), torch.as_tensor(result.map).float())
 
 
+def split_joined(arg: str | Path) -> list[str]:
+    """The runs an argument joins with ``+``; a path that exists is one run even if its name holds ``+``."""
+    return [str(arg)] if Path(arg).exists() else str(arg).split("+")
+
+
 def checkpoints_scorer(ckpts: list[str | Path], window: int | None = None):
     """The Scorer of one checkpoint, or of the mean of several checkpoints' maps (:class:`MapMean`)."""
     from nriqa.inference.scorer import Scorer
@@ -70,7 +75,7 @@ class CrossvalPredictor(ScorerPredictor):
     """
 
     def __init__(self, run_dir: str | Path, window: int | None = None) -> None:
-        runs = [Path(p) for p in str(run_dir).split("+")]
+        runs = [Path(p) for p in split_joined(run_dir)]
         self.run_dir = Path(run_dir)  # as given: several runs joined with "+" are named together in errors
         folds = []
         for run in runs:
@@ -137,7 +142,7 @@ def build_predictors(
         from nriqa.inference.scorer import Scorer
 
         predictors += [ScorerPredictor(name, Scorer.from_pretrained(name)) for name in models]
-        joined = [[c] if Path(c).is_file() else c.split("+") for c in checkpoints]  # a file named with "+" stays one
+        joined = [split_joined(c) for c in checkpoints]
         paths = list(dict.fromkeys(p for parts in joined for p in parts))
         short = dict(zip(paths, checkpoint_names(paths)))
         for parts in joined:
