@@ -57,6 +57,16 @@ def test_crossval_runs_every_fold_and_resumes(synthetic_dataset, tmp_path, capsy
     assert json.loads((tmp_path / "folds" / "beta" / RESULT_NAME).read_text())["val"] == again[1]["val"]
 
 
+def test_crossval_folds_stay_within_data_scenes(synthetic_dataset, tmp_path):
+    from nriqa.training.crossval import fold_scenes
+
+    overrides = [f"paths.data_dir={synthetic_dataset}", f"crossval.out_dir={tmp_path}", "experiment=fcnn_fast"]
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        held_back = compose("crossval", overrides=[*overrides, "data.scenes=[alpha,gamma]"])
+        everything = compose("crossval", overrides=overrides)
+    assert fold_scenes(held_back) == ["alpha", "gamma"] and fold_scenes(everything) == ["alpha", "beta", "gamma"]
+
+
 def test_stability_table(synthetic_dataset, tmp_path):
     forwarded = [f"paths.data_dir={synthetic_dataset}", f"stability.out_dir={tmp_path}", *TINY, "data.batch_size=2"]
     with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):

@@ -65,6 +65,20 @@ def test_no_val_scene_trains_on_all(synthetic_dataset):
     assert dm.val_dataloader() == []
 
 
+def test_scenes_keeps_only_those_families(synthetic_dataset):
+    dm = make_dm(synthetic_dataset, val_scene="beta", scenes=["alpha", "beta"])
+    assert {p.record.scene for p in dm.train_pairs} == {"alpha"}
+    assert {p.record.scene for p in dm.val_pairs} == {"beta"}
+    held_back = make_dm(synthetic_dataset, val_scene=None, scenes=["gamma"])
+    assert {p.record.scene for p in held_back.train_pairs} == {"gamma"}
+    with pytest.raises(
+        FoldError, match=r"unknown scenes \['delta'\] in data.scenes; the dataset has: alpha, beta, gamma"
+    ):
+        make_dm(synthetic_dataset, scenes=["alpha", "delta"])
+    with pytest.raises(FoldError, match="unknown val_scene 'gamma'"):  # the held-out scene must be one of them
+        make_dm(synthetic_dataset, val_scene="gamma", scenes=["alpha", "beta"])
+
+
 def test_references_are_loaded_once(dm):
     refs = {id(p.ref) for p in dm.train_pairs}
     assert len(refs) == 2

@@ -10,7 +10,7 @@ import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
-from nriqa.data.folds import split_by_scene
+from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
 from nriqa.data.targets import check_target
@@ -44,6 +44,8 @@ class NRIQADataModule(L.LightningDataModule):
         data_dir: dataset root holding ``manifest.json``, or a list of roots trained on together
             (e.g. the default dataset and one rendered with a longer spp ladder).
         val_scene: scene family held out for validation; ``None`` trains on all, no validation.
+        scenes: use only these scene families (training and validation); ``None``: every family of
+            ``data_dir``. For holding families back from a run, to measure on them afterwards.
         patch_size: 32 for the patch CNN, 64 for the FCNNs.
         target: ``"ssim_map"`` (experiment II) or ``"patch_mae"`` (experiment I).
         batch_size: patches per batch (training and validation).
@@ -64,6 +66,7 @@ class NRIQADataModule(L.LightningDataModule):
         self,
         data_dir: str | os.PathLike | Sequence[str | os.PathLike],
         val_scene: str | None = None,
+        scenes: Sequence[str] | None = None,
         patch_size: int = 64,
         target: str = "ssim_map",
         batch_size: int = 16,
@@ -85,11 +88,13 @@ class NRIQADataModule(L.LightningDataModule):
         # plain str / list before saving: a checkpoint must load with weights_only=True (no ListConfig)
         data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         display = None if display is None else {k: float(v) for k, v in dict(display).items()}
+        scenes = None if scenes is None else [str(s) for s in scenes]
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
+        self.scenes = scenes
         self.patch_size = patch_size
         self.target = target
         self.batch_size = batch_size
@@ -112,7 +117,7 @@ class NRIQADataModule(L.LightningDataModule):
         """
         if self.train_set is not None:
             return
-        train, val = split_by_scene(read_datasets(self.data_dir), self.val_scene)
+        train, val = split_by_scene(only_scenes(read_datasets(self.data_dir), self.scenes), self.val_scene)
         self.train_pairs = load_pairs(train, linear=self.display is not None, twins=self.twins)
         self.val_pairs = load_pairs(val, twins=self.twins)
         self.train_set = TrainPatches(

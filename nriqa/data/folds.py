@@ -21,6 +21,21 @@ def noisy_records(records: list[Record]) -> list[Record]:
     return [r for r in records if r.role in NOISY_ROLES]
 
 
+def only_scenes(records: list[Record], scenes: list[str] | None) -> list[Record]:
+    """The records of the scene families ``scenes`` (``None``: all), e.g. to hold some families back.
+
+    Raises:
+        FoldError: a name is not a scene of ``records`` (the message lists the scenes).
+    """
+    if scenes is None:
+        return records
+    available = scenes_of(noisy_records(records))
+    unknown = [s for s in scenes if s not in available]
+    if unknown:
+        raise FoldError(f"unknown scenes {unknown} in data.scenes; the dataset has: {', '.join(available)}")
+    return [r for r in records if r.scene in set(scenes)]
+
+
 def split_by_scene(records: list[Record], val_scene: str | None) -> tuple[list[Record], list[Record]]:
     """Split the noisy records of a dataset into ``(train, val)`` with ``val_scene`` held out.
 

@@ -22,7 +22,7 @@ import torch
 from omegaconf import DictConfig, open_dict
 
 from nriqa.core.correlation import kendall_tau, pcc, srocc
-from nriqa.data.folds import FoldError, noisy_records
+from nriqa.data.folds import FoldError, noisy_records, only_scenes
 from nriqa.eval.fold_eval import image_level, patch_correlations
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.manifest import read_datasets, scenes_of
@@ -43,8 +43,13 @@ IMAGE_COLUMNS = ["scene", "id", "role", "spp", "true", "predicted"]
 
 
 def fold_scenes(cfg: DictConfig) -> list[str]:
-    """The folds to run: ``crossval.scenes`` if given (checked), else every scene with noisy images."""
-    available = scenes_of(noisy_records(read_datasets(cfg.data.data_dir)))
+    """The folds to run: ``crossval.scenes`` if given (checked), else every scene with noisy images.
+
+    With ``data.scenes`` only those families exist for the folds (held-back families are neither
+    trained on nor held out).
+    """
+    scenes = cfg.data.get("scenes")
+    available = scenes_of(noisy_records(only_scenes(read_datasets(cfg.data.data_dir), scenes and list(scenes))))
     wanted = list(cfg.crossval.scenes) if cfg.crossval.get("scenes") else available
     unknown = [s for s in wanted if s not in available]
     if unknown:
