@@ -33,7 +33,8 @@ def only_scenes(records: list[Record], scenes: list[str] | None) -> list[Record]
     unknown = [s for s in scenes if s not in available]
     if unknown:
         raise FoldError(f"unknown scenes {unknown} in data.scenes; the dataset has: {', '.join(available)}")
-    return [r for r in records if r.scene in set(scenes)]
+    keep = set(scenes)
+    return [r for r in records if r.scene in keep]
 
 
 def split_by_scene(records: list[Record], val_scene: str | None) -> tuple[list[Record], list[Record]]:

@@ -21,10 +21,11 @@ import torch
 
 from nriqa.core.display import Display, apply_display, key_exposure
 from nriqa.core.ssim import ssim_map
+from nriqa.data.images import load_linear_many
 from nriqa.errors import NriqaError
 from nriqa.eval.baselines import Item
 from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE, scan_external
-from nriqa.io.imread import load_ldr, read_image
+from nriqa.io.imread import HDR_SUFFIXES, load_ldr
 from nriqa.io.manifest import MANIFEST_NAME, Record, read_manifest
 
 
@@ -69,13 +70,12 @@ class _Loader:
         return apply_display(linear, self.display, self.keys[reference])
 
     def _linear(self, path: str) -> torch.Tensor:
-        img, is_hdr = read_image(self.root / path)
-        if not is_hdr:
+        if Path(path).suffix.lower() not in HDR_SUFFIXES:
             raise EvaluationError(
                 f"{self.root / path}: --display needs linear EXR renders, this one is already displayed; "
                 "leave --display out"
             )
-        return torch.from_numpy(img).permute(2, 0, 1).contiguous()
+        return load_linear_many([self.root / path])[0]
 
 
 def load_dataset(
