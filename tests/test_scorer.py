@@ -309,3 +309,24 @@ def test_export_of_several_checkpoints_ships_their_mean(tmp_path, capsys):
     torch.save({"state_dict": other, "hyper_parameters": {"net": twin_spec}}, tmp_path / "other.ckpt")
     assert pretrained_main(["export", str(ckpts[0]), str(tmp_path / "other.ckpt"), "x", "--dir", str(out)]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1 and not (out / "x.pt").exists()
+
+
+def test_clipped_white_windows_score_one(fast_net):
+    """Where the whole SSIM window is clipped white the map is 1; elsewhere it is the network's."""
+    x = image(40, 48, scale=0.9)
+    x[4:30, 10:40] = 1.0
+    raw = Scorer(fast_net, exact_white=False)(x).map
+    res = Scorer(fast_net)(x)
+    inside = np.zeros(x.shape[:2], bool)
+    inside[9:25, 15:35] = True
+    assert (raw[inside] < 1).all() and (res.map[inside] == 1).all()
+    np.testing.assert_array_equal(res.map[~inside], raw[~inside])
+    assert res.score == pytest.approx(float(res.map.mean(dtype=np.float64)), abs=1e-6)
+    # A blown-out image is converged, whether it comes as LDR, as 8-bit or as HDR (+inf is white).
+    for white in (np.ones((20, 20, 3), np.float32), np.full((20, 20, 3), 255, np.uint8)):
+        assert Scorer(fast_net)(white).score == 1.0
+    assert Scorer(fast_net)(np.full((20, 20, 3), np.inf, np.float32), hdr=True).score == 1.0
+    assert Scorer(fast_net)(np.full((20, 20, 3), 0.999, np.float32)).score < 1.0  # just below the clip: the network
+    # The MAE-patch model's map is an error, not an SSIM: left alone.
+    patch = untrained("patch_cnn")
+    np.testing.assert_array_equal(Scorer(patch)(x).map, Scorer(patch, exact_white=False)(x).map)

@@ -13,6 +13,8 @@ SIGMA = 1.5
 K1 = 0.01
 K2 = 0.03
 DATA_RANGE = 1.0
+# Display values at or above this count as clipped white (white_windows).
+WHITE = 1.0 - 1e-6
 
 
 def _gaussian_1d(dtype: torch.dtype, device: torch.device) -> Tensor:
@@ -100,3 +102,29 @@ def correct_dual_buffer(s_ab: Tensor) -> Tensor:
     :mod:`nriqa.eval.baselines.dual_buffer`). ``s_ab`` as :func:`ssim_map` gives it, in [0, 1].
     """
     return 2 * s_ab / (1 + s_ab)
+
+
+def white_windows(x: Tensor) -> Tensor:
+    """Pixels whose whole SSIM window is white: every channel at 1 (clipped) in all of it.
+
+    "At 1" is ``>= WHITE`` (1 - 1e-6): a float sRGB curve returns 1.0 - 6e-8 for a clipped value,
+    while an 8- or 16-bit white is exactly 1 (a 16-bit step is 1.5e-5, so nothing below the clip counts).
+
+    There the render is clipped over the window, and so, in practice, is its reference: the two
+    windows are then the same constant and the SSIM is exactly 1 (:func:`ssim_map`'s ``x == y``).
+    The window is the 11x11 one :func:`ssim_map` filters with; at the border only in-image pixels
+    count, which is what its reflect padding sees.
+
+    Args:
+        x: ``(B, C, H, W)`` LDR in [0, 1] (e.g. the tone-mapped render).
+
+    Returns:
+        ``(B, H, W)`` bool.
+    """
+    white = (x >= WHITE).all(dim=1, keepdim=True).float()
+    pad = WINDOW // 2
+    # A minimum filter as two separable max-pools of the negation; max_pool pads with -inf, so
+    # pixels outside the image never count.
+    white = -F.max_pool2d(-white, (WINDOW, 1), stride=1, padding=(pad, 0))
+    white = -F.max_pool2d(-white, (1, WINDOW), stride=1, padding=(0, pad))
+    return white[:, 0] > 0.5
