@@ -326,6 +326,9 @@ def test_clipped_white_windows_score_one(fast_net):
     for white in (np.ones((20, 20, 3), np.float32), np.full((20, 20, 3), 255, np.uint8)):
         assert Scorer(fast_net)(white).score == 1.0
     assert Scorer(fast_net)(np.full((20, 20, 3), np.inf, np.float32), hdr=True).score == 1.0
+    one_inf = np.zeros((20, 20, 3), np.float32)
+    one_inf[..., 0] = np.inf  # the tone map whitens a pixel with any +inf channel
+    assert Scorer(fast_net)(one_inf, hdr=True).score == 1.0
     assert Scorer(fast_net)(np.full((20, 20, 3), 0.999, np.float32)).score < 1.0  # just below the clip: the network
     # The MAE-patch model's map is an error, not an SSIM: left alone.
     patch = untrained("patch_cnn")

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from nriqa.core.ssim import white_windows
+from nriqa.core.ssim import WHITE, white_windows
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 
@@ -282,8 +282,15 @@ class Scorer:
         return self._tiled_map(batch, flags, twins)
 
     def _white_to_one(self, qmap: Tensor, batch: Tensor, flags: list[bool]) -> None:
-        """Set ``qmap`` to 1 in place where the image's whole SSIM window is clipped white, one image at a time."""
+        """Set ``qmap`` to 1 in place where the image's whole SSIM window is clipped white, one image at a time.
+
+        A pixel is white after :meth:`prepare` only if every raw channel is at least ``WHITE`` (the tone
+        map divides by 1 + luminance) or one is +Inf, so images without such a pixel skip the window test.
+        """
         for i, flag in enumerate(flags):
+            img = batch[i]
+            if not ((img >= WHITE).all(dim=0) | torch.isposinf(img).any(dim=0)).any():
+                continue
             white = white_windows(self.prepare(batch[i : i + 1], [flag]))[0].to(qmap.device)
             qmap[i].masked_fill_(white, 1.0)
 
