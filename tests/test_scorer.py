@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from nriqa.cli.weights import main as pretrained_main
+from nriqa.core.ssim import white_windows
 from nriqa.inference.pretrained import PretrainedError, list_pretrained, load_pretrained, save_pretrained
 from nriqa.inference.scorer import Scorer, ScorerInputError
 from nriqa.models import create_model
@@ -330,6 +331,12 @@ def test_clipped_white_windows_score_one(fast_net):
     one_inf[..., 0] = np.inf  # the tone map whitens a pixel with any +inf channel
     assert Scorer(fast_net)(one_inf, hdr=True).score == 1.0
     assert Scorer(fast_net)(np.full((20, 20, 3), 0.999, np.float32)).score < 1.0  # just below the clip: the network
+    # Bad LDR pixels count as the sanitising policy makes them: above 1 and +inf white, NaN black.
+    dirty = x.copy()
+    dirty[10, 20], dirty[12, 22], dirty[20, 30] = 3.0, np.inf, np.nan
+    got = Scorer(fast_net)(dirty, hdr=False).map == 1
+    want = white_windows(Scorer.prepare(torch.from_numpy(dirty).permute(2, 0, 1)[None], [False]))[0].numpy()
+    assert want[12, 22] and not want[20, 30] and np.array_equal(got, want)
     # The MAE-patch model's map is an error, not an SSIM: left alone.
     patch = untrained("patch_cnn")
     np.testing.assert_array_equal(Scorer(patch)(x).map, Scorer(patch, exact_white=False)(x).map)

@@ -286,12 +286,16 @@ class Scorer:
 
         A pixel is white after :meth:`prepare` only if every raw channel is at least ``WHITE`` (the tone
         map divides by 1 + luminance) or one is +Inf, so images without such a pixel skip the window test.
+        For LDR, :meth:`prepare` keeps exactly the raw channels at or above ``WHITE`` there (NaN -> 0,
+        above 1 -> 1), so the raw image is tested as it is.
         """
         for i, flag in enumerate(flags):
-            img = batch[i]
-            if not ((img >= WHITE).all(dim=0) | torch.isposinf(img).any(dim=0)).any():
+            img = batch[i : i + 1]
+            if not flag and not (img >= WHITE).all(dim=1).any():
                 continue
-            white = white_windows(self.prepare(batch[i : i + 1], [flag]))[0].to(qmap.device)
+            if flag and not ((img >= WHITE).all(dim=1) | torch.isposinf(img).any(dim=1)).any():
+                continue
+            white = white_windows(self.prepare(img, [flag]) if flag else img)[0].to(qmap.device)
             qmap[i].masked_fill_(white, 1.0)
 
     def _tiled_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
