@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from nriqa.cli.weights import main as pretrained_main
-from nriqa.core.ssim import white_windows
+from nriqa.core.ssim import flat_windows
 from nriqa.inference.pretrained import PretrainedError, list_pretrained, load_pretrained, save_pretrained
 from nriqa.inference.scorer import Scorer, ScorerInputError
 from nriqa.models import create_model
@@ -312,31 +312,35 @@ def test_export_of_several_checkpoints_ships_their_mean(tmp_path, capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 1 and not (out / "x.pt").exists()
 
 
-def test_clipped_white_windows_score_one(fast_net):
-    """Where the whole SSIM window is clipped white the map is 1; elsewhere it is the network's."""
+def test_flat_bright_windows_score_one(fast_net):
+    """Where the whole SSIM window is one bright colour the map is 1; elsewhere it is the network's."""
     x = image(40, 48, scale=0.9)
-    x[4:30, 10:40] = 1.0
-    raw = Scorer(fast_net, exact_white=False)(x).map
+    x[4:30, 10:40] = 1.0  # clipped white
+    x[30:, 0:25] = (0.6, 0.5, 0.2)  # a flat backdrop touching the border
+    raw = Scorer(fast_net, exact_flat=False)(x).map
     res = Scorer(fast_net)(x)
     inside = np.zeros(x.shape[:2], bool)
     inside[9:25, 15:35] = True
+    inside[35:, 0:20] = True
     assert (raw[inside] < 1).all() and (res.map[inside] == 1).all()
     np.testing.assert_array_equal(res.map[~inside], raw[~inside])
     assert res.score == pytest.approx(float(res.map.mean(dtype=np.float64)), abs=1e-6)
-    # A blown-out image is converged, whether it comes as LDR, as 8-bit or as HDR (+inf is white).
-    for white in (np.ones((20, 20, 3), np.float32), np.full((20, 20, 3), 255, np.uint8)):
-        assert Scorer(fast_net)(white).score == 1.0
+    # A blown-out or flat bright image is converged, as LDR, as 8-bit or as HDR (+inf is white).
+    for flat in (np.ones((20, 20, 3), np.float32), np.full((20, 20, 3), 255, np.uint8), np.full((20, 20, 3), 0.5)):
+        assert Scorer(fast_net)(flat).score == 1.0
     assert Scorer(fast_net)(np.full((20, 20, 3), np.inf, np.float32), hdr=True).score == 1.0
     one_inf = np.zeros((20, 20, 3), np.float32)
     one_inf[..., 0] = np.inf  # the tone map whitens a pixel with any +inf channel
     assert Scorer(fast_net)(one_inf, hdr=True).score == 1.0
-    assert Scorer(fast_net)(np.full((20, 20, 3), 0.999, np.float32)).score < 1.0  # just below the clip: the network
+    # Black and dark flat windows are the network's: most often no sample has reached them yet.
+    for dark in (np.zeros((20, 20, 3), np.float32), np.full((20, 20, 3), 0.05, np.float32)):
+        assert Scorer(fast_net)(dark).score < 1.0
     # Bad LDR pixels count as the sanitising policy makes them: above 1 and +inf white, NaN black.
     dirty = x.copy()
     dirty[10, 20], dirty[12, 22], dirty[20, 30] = 3.0, np.inf, np.nan
     got = Scorer(fast_net)(dirty, hdr=False).map == 1
-    want = white_windows(Scorer.prepare(torch.from_numpy(dirty).permute(2, 0, 1)[None], [False]))[0].numpy()
+    want = flat_windows(Scorer.prepare(torch.from_numpy(dirty).permute(2, 0, 1)[None], [False]))[0].numpy()
     assert want[12, 22] and not want[20, 30] and np.array_equal(got, want)
     # The MAE-patch model's map is an error, not an SSIM: left alone.
     patch = untrained("patch_cnn")
-    np.testing.assert_array_equal(Scorer(patch)(x).map, Scorer(patch, exact_white=False)(x).map)
+    np.testing.assert_array_equal(Scorer(patch)(x).map, Scorer(patch, exact_flat=False)(x).map)

@@ -4,7 +4,7 @@ import torch
 from skimage.metrics import structural_similarity
 
 from nriqa.core.mae import patch_mae
-from nriqa.core.ssim import ssim_map, white_windows
+from nriqa.core.ssim import flat_windows, ssim_map, white_windows
 from nriqa.core.tonemap import luminance
 
 
@@ -111,3 +111,40 @@ def test_white_windows_none_below_the_clip_and_all_on_white():
     assert white_windows(torch.full((2, 3, 16, 16), 1 - 6e-8)).all()  # a float sRGB curve's clipped white
     assert white_windows(torch.ones(2, 3, 16, 16)).all()
     assert not white_windows(torch.cat([torch.ones(1, 2, 16, 16), torch.zeros(1, 1, 16, 16)], dim=1)).any()
+
+
+def _flat_brute_force(x: torch.Tensor, floor: float = 0.1) -> torch.Tensor:
+    b, _, h, w = x.shape
+    out = torch.zeros(b, h, w, dtype=torch.bool)
+    lum = luminance(x)[:, 0]
+    for i in range(h):
+        for j in range(w):
+            win = x[:, :, max(0, i - 5) : i + 6, max(0, j - 5) : j + 6]
+            dx = (win[..., :, 1:] - win[..., :, :-1]).abs().amax(dim=(1, 2, 3))
+            dy = (win[..., 1:, :] - win[..., :-1, :]).abs().amax(dim=(1, 2, 3))
+            out[:, i, j] = (dx <= 1e-6) & (dy <= 1e-6) & (lum[:, i, j] >= floor)
+    return out
+
+
+@pytest.mark.parametrize("h, w", [(30, 37), (6, 6), (7, 40), (25, 11)])
+def test_flat_windows_match_their_definition(h, w):
+    g = torch.Generator().manual_seed(h * w)
+    x = torch.rand(2, 3, h, w, generator=g)
+    x[0, :, 1:, 0:20] = 0.5  # flat grey touching three borders
+    x[1, :, h // 3 :, w // 3 :] = torch.tensor([0.9, 0.2, 0.1])[:, None, None]  # a flat colour in a corner
+    x[1, :, -1, -1] += 5e-7  # within the step tolerance
+    assert torch.equal(flat_windows(x), _flat_brute_force(x))
+
+
+def test_flat_windows_leave_dark_out_and_hold_white():
+    assert not flat_windows(torch.zeros(1, 3, 16, 16)).any()  # black: not reached yet, not converged
+    assert not flat_windows(torch.full((1, 3, 16, 16), 0.099)).any()
+    assert flat_windows(torch.full((1, 3, 16, 16), 0.101)).all()
+    x = torch.rand(1, 3, 30, 30, generator=torch.Generator().manual_seed(3))
+    x[..., 0:20, 5:25] = 1.0
+    assert torch.equal(white_windows(x), flat_windows(x))  # clipped white is flat at level 1
+    # Where a window is flat and the reference has the same colour there, the SSIM is exactly 1.
+    x[..., 20:, :] = 0.4
+    ref = x.clone()
+    ref[..., 0:4, 25:] = 0.0
+    assert torch.all(ssim_map(x, ref)[0, 0][flat_windows(x)[0]] == 1)

@@ -15,6 +15,10 @@ K2 = 0.03
 DATA_RANGE = 1.0
 # Display values at or above this count as clipped white (white_windows).
 WHITE = 1.0 - 1e-6
+# Neighbours closer than this in every channel are the same colour; flat windows darker than FLAT_FLOOR
+# (luminance) are not counted as converged (flat_windows).
+FLAT_STEP = 1e-6
+FLAT_FLOOR = 0.1
 
 
 def _gaussian_1d(dtype: torch.dtype, device: torch.device) -> Tensor:
@@ -128,3 +132,54 @@ def white_windows(x: Tensor) -> Tensor:
     white = -F.max_pool2d(-white, (WINDOW, 1), stride=1, padding=(pad, 0))
     white = -F.max_pool2d(-white, (1, WINDOW), stride=1, padding=(0, pad))
     return white[:, 0] > 0.5
+
+
+def _box_sums(counts: Tensor, rows: tuple[int, int], cols: tuple[int, int], size: tuple[int, int]) -> Tensor:
+    """Sums of ``counts`` ``(B, P, Q)`` over ``[i - rows[0], i + rows[1]] x [j - cols[0], j + cols[1]]``
+    (clipped to the array) for every output pixel ``(i, j)`` of ``size``; exact (integer prefix sums)."""
+    b, p, q = counts.shape
+    prefix = torch.zeros(b, p + 1, q + 1, dtype=torch.int64, device=counts.device)
+    prefix[:, 1:, 1:] = counts.to(torch.int64).cumsum(1).cumsum(2)
+    i = torch.arange(size[0], device=counts.device)
+    j = torch.arange(size[1], device=counts.device)
+    r0, r1 = (i - rows[0]).clamp(0, p), (i + rows[1] + 1).clamp(0, p)
+    c0, c1 = (j - cols[0]).clamp(0, q), (j + cols[1] + 1).clamp(0, q)
+    r0, r1, c0, c1 = r0[:, None], r1[:, None], c0[None, :], c1[None, :]
+    return prefix[:, r1, c1] - prefix[:, r0, c1] - prefix[:, r1, c0] + prefix[:, r0, c0]
+
+
+def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
+    """Pixels whose whole SSIM window is one colour, of luminance at least ``floor``.
+
+    "One colour": every two neighbouring pixels of the window (in-image part, as :func:`white_windows`)
+    differ by at most ``FLAT_STEP`` (1e-6) in every channel. A Monte Carlo render is that flat only
+    where every sample returned the same radiance -- a light or a constant background seen directly,
+    a region clipped white -- so its reference is the same there and the SSIM is 1 (a white window is
+    the case at level 1). Black is left out on purpose: a black window of a noisy render is most often
+    one no sample has reached yet (dark, sparse light; on dataset v2 such pixels have true SSIM near 0),
+    and 8-bit steps at low levels move SSIM's luminance term, so ``floor`` (0.1) keeps to levels where
+    one 8-bit step costs less than 0.001.
+
+    Args:
+        x: ``(B, C, H, W)`` LDR in [0, 1] (e.g. the tone-mapped render); C = 3 (RGB) or 1.
+        floor: the least luminance (eq. 4.1, or the gray value) a flat window must have.
+
+    Returns:
+        ``(B, H, W)`` bool.
+    """
+    h, w = x.shape[-2:]
+    pad = WINDOW // 2
+    # Any window holds at least 6 rows (images are >= 6 px), so one of rows 0, 6, 12, ...: a flat window
+    # needs a bright pixel there the same colour as its right neighbour. Most renders have none: done.
+    rows = x[..., ::6, :]
+    same = (rows[..., :, 1:] - rows[..., :, :-1]).abs().amax(dim=1) <= FLAT_STEP
+    bright = (luminance(rows) if x.shape[1] == 3 else rows)[:, 0, :, :-1] >= floor
+    if not (same & bright).any():
+        return torch.zeros(x.shape[0], h, w, dtype=torch.bool, device=x.device)
+    step_x = (x[..., :, 1:] - x[..., :, :-1]).abs().amax(dim=1) > FLAT_STEP  # (B, H, W-1): pixel j vs j+1
+    step_y = (x[..., 1:, :] - x[..., :-1, :]).abs().amax(dim=1) > FLAT_STEP  # (B, H-1, W)
+    level = (luminance(x) if x.shape[1] == 3 else x)[:, 0] >= floor
+    # The window of (i, j) holds the horizontal pairs (r, k), k in [j - 5, j + 4], r in [i - 5, i + 5], and
+    # the vertical pairs (k, c), k in [i - 5, i + 4], c in [j - 5, j + 5]: none may be a step.
+    steps = _box_sums(step_x, (pad, pad), (pad, pad - 1), (h, w)) + _box_sums(step_y, (pad, pad - 1), (pad, pad), (h, w))
+    return level & (steps == 0)

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from nriqa.core.ssim import WHITE, white_windows
+from nriqa.core.ssim import flat_windows
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 
@@ -105,12 +105,14 @@ class Scorer:
     below); a map is then smooth across window borders, but a large image is read out of the model's
     training regime (docs/results/evaluation.md measures both).
 
-    Clipped white (map models, ``exact_white=True``): a pixel whose whole 11x11 SSIM window is white in
-    the prepared input (every channel at 1: a blown-out highlight, an overexposed PNG) is scored 1.
-    A render clipped over the window is clipped there in its reference too, so the two windows are
-    the same constant and the SSIM is exactly 1 (all 141,202 such pixels of dataset v2 shown
-    through sRGB +2 stops); the networks read them lower (``unet_fast`` 0.948, :func:`nriqa.core.ssim.white_windows`,
-    docs/scoring.md). ``exact_white=False`` returns the network's map unchanged.
+    Flat bright windows (map models, ``exact_flat=True``): a pixel whose whole 11x11 SSIM window is one
+    colour in the prepared input, of luminance >= 0.1 (a light or constant background seen directly, a
+    blown-out highlight, an overexposed PNG), is scored 1 (:func:`nriqa.core.ssim.flat_windows`). A
+    Monte Carlo render is that flat only where every sample returned the same radiance, so the
+    reference is the same there and the SSIM is exactly 1; the networks read such pixels lower
+    (``unet_fast`` 0.94-0.99; docs/scoring.md). Black windows are left to the network (in a noisy
+    render they are most often unreached, not converged). ``exact_flat=False`` returns the network's
+    map unchanged.
 
     Inference runs in ``torch.inference_mode()`` and eval mode (no dropout, batch-norm running
     statistics): the same input gives the same map.
@@ -124,7 +126,7 @@ class Scorer:
         stride: int = 8,
         window: int | None = None,
         device: str | torch.device | None = None,
-        exact_white: bool = True,
+        exact_flat: bool = True,
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -152,7 +154,7 @@ class Scorer:
         self.window = max(window, self.min_size) if window else 0
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
-        self.exact_white = bool(exact_white) and output == "map"
+        self.exact_flat = bool(exact_flat) and output == "map"
 
     @property
     def higher_is_better(self) -> bool:
@@ -207,8 +209,8 @@ class Scorer:
         with torch.inference_mode():
             flags = self.detect_hdr(batch, hdr)
             qmap = self._map(batch, flags, twins)
-            if self.exact_white:
-                self._white_to_one(qmap, batch, flags)
+            if self.exact_flat:
+                self._flat_to_one(qmap, batch, flags)
             scores = qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
         qmap = qmap.to(out_device)
         scores = scores.to(out_device)
@@ -281,22 +283,11 @@ class Scorer:
             return self.net(self._input(batch, flags, twins))[:, 0].clamp(0.0, 1.0)
         return self._tiled_map(batch, flags, twins)
 
-    def _white_to_one(self, qmap: Tensor, batch: Tensor, flags: list[bool]) -> None:
-        """Set ``qmap`` to 1 in place where the image's whole SSIM window is clipped white, one image at a time.
-
-        A pixel is white after :meth:`prepare` only if every raw channel is at least ``WHITE`` (the tone
-        map divides by 1 + luminance) or one is +Inf, so images without such a pixel skip the window test.
-        For LDR, :meth:`prepare` keeps exactly the raw channels at or above ``WHITE`` there (NaN -> 0,
-        above 1 -> 1), so the raw image is tested as it is.
-        """
+    def _flat_to_one(self, qmap: Tensor, batch: Tensor, flags: list[bool]) -> None:
+        """Set ``qmap`` to 1 in place where the image's whole SSIM window is one bright colour, one image at a time."""
         for i, flag in enumerate(flags):
-            img = batch[i : i + 1]
-            if not flag and not (img >= WHITE).all(dim=1).any():
-                continue
-            if flag and not ((img >= WHITE).all(dim=1) | torch.isposinf(img).any(dim=1)).any():
-                continue
-            white = white_windows(self.prepare(img, [flag]) if flag else img)[0].to(qmap.device)
-            qmap[i].masked_fill_(white, 1.0)
+            flat = flat_windows(self.prepare(batch[i : i + 1], [flag]))[0].to(qmap.device)
+            qmap[i].masked_fill_(flat, 1.0)
 
     def _tiled_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
         b, _, h, w = batch.shape
