@@ -181,5 +181,6 @@ def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
     level = (luminance(x) if x.shape[1] == 3 else x)[:, 0] >= floor
     # The window of (i, j) holds the horizontal pairs (r, k), k in [j - 5, j + 4], r in [i - 5, i + 5], and
     # the vertical pairs (k, c), k in [i - 5, i + 4], c in [j - 5, j + 5]: none may be a step.
-    steps = _box_sums(step_x, (pad, pad), (pad, pad - 1), (h, w)) + _box_sums(step_y, (pad, pad - 1), (pad, pad), (h, w))
-    return level & (steps == 0)
+    steps_x = _box_sums(step_x, (pad, pad), (pad, pad - 1), (h, w))
+    steps_y = _box_sums(step_y, (pad, pad - 1), (pad, pad), (h, w))
+    return level & (steps_x == 0) & (steps_y == 0)
