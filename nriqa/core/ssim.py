@@ -173,7 +173,8 @@ def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
     # needs a bright pixel there the same colour as its right neighbour. Most renders have none: done.
     rows = x[..., ::6, :]
     same = (rows[..., :, 1:] - rows[..., :, :-1]).abs().amax(dim=1) <= FLAT_STEP
-    bright = (luminance(rows) if x.shape[1] == 3 else rows)[:, 0, :, :-1] >= floor
+    # (a window's pixels may drift from its centre by 10 steps, so the row test allows for them)
+    bright = (luminance(rows) if x.shape[1] == 3 else rows)[:, 0, :, :-1] >= floor - 20 * FLAT_STEP
     if not (same & bright).any():
         return torch.zeros(x.shape[0], h, w, dtype=torch.bool, device=x.device)
     step_x = (x[..., :, 1:] - x[..., :, :-1]).abs().amax(dim=1) > FLAT_STEP  # (B, H, W-1): pixel j vs j+1
