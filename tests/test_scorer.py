@@ -325,6 +325,9 @@ def test_flat_bright_windows_score_one(fast_net):
     assert (raw[inside] < 1).all() and (res.map[inside] == 1).all()
     np.testing.assert_array_equal(res.map[~inside], raw[~inside])
     assert res.score == pytest.approx(float(res.map.mean(dtype=np.float64)), abs=1e-6)
+    tiled = Scorer(fast_net, tile=16)(x).map  # the flat test is tiled with the network: the same pixels
+    np.testing.assert_array_equal(tiled[inside], res.map[inside])
+    assert ((tiled == 1) == (res.map == 1)).all()
     # A blown-out or flat bright image is converged, as LDR, as 8-bit or as HDR (+inf is white).
     for flat in (np.ones((20, 20, 3), np.float32), np.full((20, 20, 3), 255, np.uint8), np.full((20, 20, 3), 0.5)):
         assert Scorer(fast_net)(flat).score == 1.0

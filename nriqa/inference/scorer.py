@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from nriqa.core.ssim import flat_windows
+from nriqa.core.ssim import WINDOW, flat_windows
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 
@@ -284,10 +284,21 @@ class Scorer:
         return self._tiled_map(batch, flags, twins)
 
     def _flat_to_one(self, qmap: Tensor, batch: Tensor, flags: list[bool]) -> None:
-        """Set ``qmap`` to 1 in place where the image's whole SSIM window is one bright colour, one image at a time."""
+        """Set ``qmap`` to 1 in place where the image's whole SSIM window is one bright colour.
+
+        Image by image and tile by tile (``tile``, grown by the window's radius, which is all a pixel's
+        window reaches), so memory follows the tile as for the network.
+        """
+        h, w = batch.shape[-2:]
+        t, halo = self.tile or max(h, w), WINDOW // 2
         for i, flag in enumerate(flags):
-            flat = flat_windows(self.prepare(batch[i : i + 1], [flag]))[0].to(qmap.device)
-            qmap[i].masked_fill_(flat, 1.0)
+            for y0 in range(0, h, t):
+                y1, iy0 = min(y0 + t, h), max(0, y0 - halo)
+                for x0 in range(0, w, t):
+                    x1, ix0 = min(x0 + t, w), max(0, x0 - halo)
+                    piece = batch[i : i + 1, :, iy0 : min(h, y1 + halo), ix0 : min(w, x1 + halo)]
+                    flat = flat_windows(self.prepare(piece, [flag]))[0, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
+                    qmap[i, y0:y1, x0:x1].masked_fill_(flat.to(qmap.device), 1.0)
 
     def _tiled_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
         b, _, h, w = batch.shape
