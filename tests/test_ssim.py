@@ -4,7 +4,7 @@ import torch
 from skimage.metrics import structural_similarity
 
 from nriqa.core.mae import patch_mae
-from nriqa.core.ssim import flat_windows, ssim_map, white_windows
+from nriqa.core.ssim import flat_windows, ssim_map
 from nriqa.core.tonemap import luminance
 
 
@@ -91,28 +91,6 @@ def test_patch_mae():
         patch_mae(x[0], y[0])
 
 
-def test_white_windows_are_the_pixels_whose_whole_window_is_white():
-    x = torch.rand(1, 3, 40, 50, generator=torch.Generator().manual_seed(1)) * 0.9
-    x[..., 5:30, 0:20] = 1.0  # a clipped block touching the left border
-    x[0, 0, 20, 10] = 0.999  # one channel just below the clip breaks the windows around it
-    mask = white_windows(x)[0]
-    want = torch.zeros(40, 50, dtype=torch.bool)
-    want[10:25, 0:15] = True  # 5 px in from the block's inner edges; the image border does not count
-    want[15:26, 5:16] = False
-    assert torch.equal(mask, want)
-    # Where it holds, any reference clipped over the same windows gives SSIM exactly 1.
-    ref = x.clone()
-    ref[..., :, 35:] = torch.rand(1, 3, 40, 15, generator=torch.Generator().manual_seed(2))
-    assert torch.all(ssim_map(x, ref)[0, 0][mask] == 1)
-
-
-def test_white_windows_none_below_the_clip_and_all_on_white():
-    assert not white_windows(torch.full((2, 3, 16, 16), 1 - 2**-16)).any()  # one 16-bit step below
-    assert white_windows(torch.full((2, 3, 16, 16), 1 - 6e-8)).all()  # a float sRGB curve's clipped white
-    assert white_windows(torch.ones(2, 3, 16, 16)).all()
-    assert not white_windows(torch.cat([torch.ones(1, 2, 16, 16), torch.zeros(1, 1, 16, 16)], dim=1)).any()
-
-
 def _flat_brute_force(x: torch.Tensor, floor: float = 0.1) -> torch.Tensor:
     b, _, h, w = x.shape
     out = torch.zeros(b, h, w, dtype=torch.bool)
@@ -141,8 +119,13 @@ def test_flat_windows_leave_dark_out_and_hold_white():
     assert not flat_windows(torch.full((1, 3, 16, 16), 0.099)).any()
     assert flat_windows(torch.full((1, 3, 16, 16), 0.101)).all()
     x = torch.rand(1, 3, 30, 30, generator=torch.Generator().manual_seed(3))
-    x[..., 0:20, 5:25] = 1.0
-    assert torch.equal(white_windows(x), flat_windows(x))  # clipped white is flat at level 1
+    x[..., 0:20, 5:25] = 1.0  # clipped white is flat at level 1, a float sRGB curve's white too
+    x[0, 0, 19, 24] = 1 - 6e-8
+    want = torch.zeros(30, 30, dtype=torch.bool)
+    want[0:15, 10:20] = True  # 5 px in from the block's inner edges; the image border does not count
+    assert torch.equal(flat_windows(x)[0], want)
+    checker = (torch.arange(16)[:, None] + torch.arange(16)[None, :]) % 2
+    assert not flat_windows((1 - checker * 2**-16).expand(1, 3, 16, 16)).any()  # 16-bit steps are not flat
     # Where a window is flat and the reference has the same colour there, the SSIM is exactly 1.
     x[..., 20:, :] = 0.4
     ref = x.clone()

@@ -13,8 +13,6 @@ SIGMA = 1.5
 K1 = 0.01
 K2 = 0.03
 DATA_RANGE = 1.0
-# Display values at or above this count as clipped white (white_windows).
-WHITE = 1.0 - 1e-6
 # Neighbours closer than this in every channel are the same colour; flat windows darker than FLAT_FLOOR
 # (luminance) are not counted as converged (flat_windows).
 FLAT_STEP = 1e-6
@@ -108,32 +106,6 @@ def correct_dual_buffer(s_ab: Tensor) -> Tensor:
     return 2 * s_ab / (1 + s_ab)
 
 
-def white_windows(x: Tensor) -> Tensor:
-    """Pixels whose whole SSIM window is white: every channel at 1 (clipped) in all of it.
-
-    "At 1" is ``>= WHITE`` (1 - 1e-6): a float sRGB curve returns 1.0 - 6e-8 for a clipped value,
-    while an 8- or 16-bit white is exactly 1 (a 16-bit step is 1.5e-5, so nothing below the clip counts).
-
-    There the render is clipped over the window, and so, in practice, is its reference: the two
-    windows are then the same constant and the SSIM is exactly 1 (:func:`ssim_map`'s ``x == y``).
-    The window is the 11x11 one :func:`ssim_map` filters with; at the border only in-image pixels
-    count, which is what its reflect padding sees.
-
-    Args:
-        x: ``(B, C, H, W)`` LDR in [0, 1] (e.g. the tone-mapped render).
-
-    Returns:
-        ``(B, H, W)`` bool.
-    """
-    white = (x >= WHITE).all(dim=1, keepdim=True).float()
-    pad = WINDOW // 2
-    # A minimum filter as two separable max-pools of the negation; max_pool pads with -inf, so
-    # pixels outside the image never count.
-    white = -F.max_pool2d(-white, (WINDOW, 1), stride=1, padding=(pad, 0))
-    white = -F.max_pool2d(-white, (1, WINDOW), stride=1, padding=(0, pad))
-    return white[:, 0] > 0.5
-
-
 def _box_sums(counts: Tensor, rows: tuple[int, int], cols: tuple[int, int], size: tuple[int, int]) -> Tensor:
     """Sums of ``counts`` ``(B, P, Q)`` over ``[i - rows[0], i + rows[1]] x [j - cols[0], j + cols[1]]``
     (clipped to the array) for every output pixel ``(i, j)`` of ``size``; exact (integer prefix sums)."""
@@ -151,14 +123,18 @@ def _box_sums(counts: Tensor, rows: tuple[int, int], cols: tuple[int, int], size
 def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
     """Pixels whose whole SSIM window is one colour, of luminance at least ``floor``.
 
-    "One colour": every two neighbouring pixels of the window (in-image part, as :func:`white_windows`)
-    differ by at most ``FLAT_STEP`` (1e-6) in every channel. A Monte Carlo render is that flat only
-    where every sample returned the same radiance -- a light or a constant background seen directly,
-    a region clipped white -- so its reference is the same there and the SSIM is 1 (a white window is
-    the case at level 1). Black is left out on purpose: a black window of a noisy render is most often
-    one no sample has reached yet (dark, sparse light; on dataset v2 such pixels have true SSIM near 0),
-    and 8-bit steps at low levels move SSIM's luminance term, so ``floor`` (0.1) keeps to levels where
-    one 8-bit step costs less than 0.001.
+    "One colour": every two neighbouring pixels of the window differ by at most ``FLAT_STEP`` (1e-6) in
+    every channel; the window is the 11x11 one :func:`ssim_map` filters with, and at the border only
+    its in-image part counts, which is what the reflect padding there sees.
+
+    A Monte Carlo render is that flat only where every sample returned the same radiance -- a light
+    or a constant background seen directly, a region clipped white (level 1; a float sRGB curve gives
+    1 - 6e-8 there, within the step) -- so its reference is the same there and the SSIM is 1. Black
+    is left out on purpose: a black window of a noisy render is most often one no sample has reached
+    yet (dark, sparse light; on dataset v2 such pixels have true SSIM near 0), and 8-bit steps at low
+    levels move SSIM's luminance term, so ``floor`` (0.1) keeps to levels where one 8-bit step costs
+    less than 0.001. On dataset v2 every pixel it covers has true SSIM >= 0.993
+    (docs/results/evaluation.md, stop 30).
 
     Args:
         x: ``(B, C, H, W)`` LDR in [0, 1] (e.g. the tone-mapped render); C = 3 (RGB) or 1.
