@@ -17,6 +17,7 @@ DATA_RANGE = 1.0
 # (luminance) are not counted as converged (flat_windows).
 FLAT_STEP = 1e-6
 FLAT_FLOOR = 0.1
+FLAT_ROWS = 6  # every window holds one row in FLAT_ROWS (may_be_flat)
 
 
 def _gaussian_1d(dtype: torch.dtype, device: torch.device) -> Tensor:
@@ -120,6 +121,19 @@ def _box_sums(counts: Tensor, rows: tuple[int, int], cols: tuple[int, int], size
     return prefix[:, r1, c1] - prefix[:, r0, c1] - prefix[:, r1, c0] + prefix[:, r0, c0]
 
 
+def may_be_flat(rows: Tensor, floor: float = FLAT_FLOOR) -> bool:
+    """Could the image whose rows ``0, FLAT_ROWS, 2 FLAT_ROWS, ...`` are ``rows`` hold a flat window?
+
+    Any window holds at least 6 rows (images are >= 6 px), so one of these: a flat window needs a
+    bright pixel there the same colour as its right neighbour. Most renders have none, and the test
+    reads a sixth of the image (the Scorer prepares only those rows for it).
+    """
+    same = (rows[..., :, 1:] - rows[..., :, :-1]).abs().amax(dim=1) <= FLAT_STEP
+    # (a window's pixels may drift from its centre by 10 steps, so the level test allows for them)
+    bright = (luminance(rows) if rows.shape[1] == 3 else rows)[:, 0, :, :-1] >= floor - 20 * FLAT_STEP
+    return bool((same & bright).any())
+
+
 def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
     """Pixels whose whole SSIM window is one colour, of luminance at least ``floor``.
 
@@ -145,13 +159,7 @@ def flat_windows(x: Tensor, floor: float = FLAT_FLOOR) -> Tensor:
     """
     h, w = x.shape[-2:]
     pad = WINDOW // 2
-    # Any window holds at least 6 rows (images are >= 6 px), so one of rows 0, 6, 12, ...: a flat window
-    # needs a bright pixel there the same colour as its right neighbour. Most renders have none: done.
-    rows = x[..., ::6, :]
-    same = (rows[..., :, 1:] - rows[..., :, :-1]).abs().amax(dim=1) <= FLAT_STEP
-    # (a window's pixels may drift from its centre by 10 steps, so the row test allows for them)
-    bright = (luminance(rows) if x.shape[1] == 3 else rows)[:, 0, :, :-1] >= floor - 20 * FLAT_STEP
-    if not (same & bright).any():
+    if not may_be_flat(x[..., ::FLAT_ROWS, :], floor):
         return torch.zeros(x.shape[0], h, w, dtype=torch.bool, device=x.device)
     step_x = (x[..., :, 1:] - x[..., :, :-1]).abs().amax(dim=1) > FLAT_STEP  # (B, H, W-1): pixel j vs j+1
     step_y = (x[..., 1:, :] - x[..., :-1, :]).abs().amax(dim=1) > FLAT_STEP  # (B, H-1, W)

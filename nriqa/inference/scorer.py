@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from nriqa.core.ssim import WINDOW, flat_windows
+from nriqa.core.ssim import FLAT_ROWS, WINDOW, flat_windows, may_be_flat
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 
@@ -297,6 +297,8 @@ class Scorer:
                 for x0 in range(0, w, t):
                     x1, ix0 = min(x0 + t, w), max(0, x0 - halo)
                     piece = batch[i : i + 1, :, iy0 : min(h, y1 + halo), ix0 : min(w, x1 + halo)]
+                    if not may_be_flat(self.prepare(piece[..., ::FLAT_ROWS, :], [flag])):
+                        continue
                     flat = flat_windows(self.prepare(piece, [flag]))[0, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
                     qmap[i, y0:y1, x0:x1].masked_fill_(flat.to(qmap.device), 1.0)
 
