@@ -290,17 +290,13 @@ class Scorer:
         window reaches), so memory follows the tile as for the network.
         """
         h, w = batch.shape[-2:]
-        t, halo = self.tile or max(h, w), WINDOW // 2
-        for i, flag in enumerate(flags):
-            for y0 in range(0, h, t):
-                y1, iy0 = min(y0 + t, h), max(0, y0 - halo)
-                for x0 in range(0, w, t):
-                    x1, ix0 = min(x0 + t, w), max(0, x0 - halo)
-                    piece = batch[i : i + 1, :, iy0 : min(h, y1 + halo), ix0 : min(w, x1 + halo)]
-                    if not may_be_flat(self.prepare(piece[..., ::FLAT_ROWS, :], [flag])):
-                        continue
-                    flat = flat_windows(self.prepare(piece, [flag]))[0, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
-                    qmap[i, y0:y1, x0:x1].masked_fill_(flat.to(qmap.device), 1.0)
+        for rows, cols, (ry, rx), (cy, cx) in _halo_tiles(h, w, self.tile or max(h, w), WINDOW // 2):
+            for i, flag in enumerate(flags):
+                piece = batch[i : i + 1, :, ry, rx]
+                if not may_be_flat(self.prepare(piece[..., ::FLAT_ROWS, :], [flag])):
+                    continue
+                flat = flat_windows(self.prepare(piece, [flag]))[0, cy, cx]
+                qmap[i, rows, cols].masked_fill_(flat.to(qmap.device), 1.0)
 
     def _tiled_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
         b, _, h, w = batch.shape
@@ -308,16 +304,10 @@ class Scorer:
         half = -(-self.receptive_field // 2)
         halo = -(-half // a) * a
         out = torch.empty(b, h, w, dtype=torch.float32, device=self.device)
-        for y0 in range(0, h, t):
-            y1 = min(y0 + t, h)
-            iy0, iy1 = max(0, y0 - halo), min(h, y1 + halo)
-            for x0 in range(0, w, t):
-                x1 = min(x0 + t, w)
-                ix0, ix1 = max(0, x0 - halo), min(w, x1 + halo)
-                window = (slice(None), slice(None), slice(iy0, iy1), slice(ix0, ix1))
-                tile = self._input(batch[window], flags, None if twins is None else twins[window])
-                pred = self.net(tile)[:, 0]
-                out[:, y0:y1, x0:x1] = pred[:, y0 - iy0 : y1 - iy0, x0 - ix0 : x1 - ix0]
+        for rows, cols, (ry, rx), (cy, cx) in _halo_tiles(h, w, t, halo):
+            window = (slice(None), slice(None), ry, rx)
+            tile = self._input(batch[window], flags, None if twins is None else twins[window])
+            out[:, rows, cols] = self.net(tile)[:, 0, cy, cx]
         return out.clamp_(0.0, 1.0)
 
     def _windowed_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
@@ -360,6 +350,20 @@ class Scorer:
             diff.index_add_(1, xs_t + p, -scores)
             total[:, y0 : y0 + p, :] += diff[:, :w].cumsum(dim=1)[:, None, :]
         return (total / count).float()
+
+
+def _halo_tiles(h: int, w: int, tile: int, halo: int):
+    """Square ``tile``-side output tiles of an ``h x w`` image, each read from the tile grown by ``halo``.
+
+    Yields ``(rows, cols, (read_rows, read_cols), (crop_rows, crop_cols))``: the output slices, the
+    slices of the image to read, and where the output tile lies in what was read.
+    """
+    for y0 in range(0, h, tile):
+        y1, iy0 = min(y0 + tile, h), max(0, y0 - halo)
+        for x0 in range(0, w, tile):
+            x1, ix0 = min(x0 + tile, w), max(0, x0 - halo)
+            read = (slice(iy0, min(h, y1 + halo)), slice(ix0, min(w, x1 + halo)))
+            yield slice(y0, y1), slice(x0, x1), read, (slice(y0 - iy0, y1 - iy0), slice(x0 - ix0, x1 - ix0))
 
 
 def _window_starts(n: int, p: int, stride: int) -> list[int]:
