@@ -46,14 +46,8 @@ def true_image_score(pair: ImagePair, target: str) -> float:
     return float(compute_target(target, pair.noisy[None], pair.ref[None]).mean())
 
 
-def predicted_image_score(net: nn.Module, image: Tensor, patch_size: int, twin: Tensor | None = None) -> float:
-    """Mean-pooled prediction for a ``(3, H, W)`` LDR image, through :class:`nriqa.inference.scorer.Scorer`.
-
-    Map models predict the whole map; the patch model scores a grid of ``patch_size`` windows
-    with stride ``patch_size`` (the last one moved in to touch the border). A two-buffer model
-    also gets the image's ``twin`` (LDR like the image).
-    """
-    scorer = Scorer(net, stride=patch_size)
+def predicted_image_score(scorer: Scorer, image: Tensor, twin: Tensor | None = None) -> float:
+    """Mean-pooled prediction of ``scorer`` for a ``(3, H, W)`` LDR image (and, for a two-buffer model, its LDR ``twin``)."""
     return float(scorer(image, hdr=False, twin=twin if scorer.needs_twin else None).score)
 
 
@@ -62,10 +56,15 @@ def image_level(
 ) -> tuple[list[dict], dict[str, float]]:
     """Per-image ``(true, predicted)`` rows and their correlations over ``pairs``.
 
+    Predictions go through :class:`nriqa.inference.scorer.Scorer`: map models predict the whole map;
+    the patch model scores a grid of ``patch_size`` windows with stride ``patch_size`` (the last one
+    moved in to touch the border).
+
     Returns:
         ``(rows, stats)``: rows ``{"id", "scene", "spp", "role", "true", "predicted"}``;
         stats ``{"pcc", "srocc", "tau", "n"}``.
     """
+    scorer = Scorer(net, stride=patch_size)
     rows = [
         {
             "id": p.record.id,
@@ -73,7 +72,7 @@ def image_level(
             "spp": p.record.spp,
             "role": p.record.role,
             "true": true_image_score(p, target),
-            "predicted": predicted_image_score(net, p.noisy, patch_size, p.twin),
+            "predicted": predicted_image_score(scorer, p.noisy, p.twin),
         }
         for p in pairs
     ]
