@@ -47,7 +47,7 @@ def true_image_score(pair: ImagePair, target: str) -> float:
 
 
 def predicted_image_score(scorer: Scorer, image: Tensor, twin: Tensor | None = None) -> float:
-    """Mean-pooled prediction of ``scorer`` for a ``(3, H, W)`` LDR image (and, for a two-buffer model, its LDR ``twin``)."""
+    """Mean-pooled prediction of ``scorer`` for a ``(3, H, W)`` LDR image (a two-buffer model also its ``twin``)."""
     return float(scorer(image, hdr=False, twin=twin if scorer.needs_twin else None).score)
 
 
