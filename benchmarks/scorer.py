@@ -10,7 +10,9 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
 
 1. **throughput** -- Mpix/s of :class:`nriqa.inference.scorer.Scorer` (tone map + forward + pooling) for
    every registered model (or ``--models``) on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
-   on a ``patch-size`` square (its cost grows with 1/stride^2). Time only: untrained weights.
+   on a ``patch-size`` square (its cost grows with 1/stride^2). Time only: untrained weights (``--shipped``:
+   the shipped ones). ``--unfolded`` also times each map model's network as trained, batch norm not folded
+   into its convolutions (:mod:`nriqa.inference.folding`), alternating with the Scorer as it runs.
 2. **memory** -- peak resident memory of scoring a 4096x4096 HDR image with ``fcnn_fast``, tiled
    (512) and untiled, each in a fresh subprocess: peak RSS (``resource.getrusage``) and its rise
    over the RSS just before scoring (torch, model and the input already in memory).
@@ -31,6 +33,7 @@ threads and other processes.
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import subprocess
 import sys
@@ -56,6 +59,7 @@ from nriqa.eval.accuracy import (  # noqa: E402  # noqa: E402
 )
 from nriqa.eval.dataset import EvaluationError  # noqa: E402
 from nriqa.eval.plots import plot_frontier  # noqa: E402
+from nriqa.inference.pretrained import load_pretrained  # noqa: E402
 from nriqa.inference.scorer import Scorer  # noqa: E402
 from nriqa.io.atomic import write_text_atomic  # noqa: E402
 from nriqa.io.exr import ImageReadError  # noqa: E402
@@ -89,10 +93,14 @@ def throughput(args) -> str:
     rows = []
     for name in args.models.split(",") if args.models else list_models():
         torch.manual_seed(0)
-        scorer = Scorer.from_pretrained(name) if args.shipped else Scorer(create_model(name), stride=8)
+        net = load_pretrained(name) if args.shipped else create_model(name)
+        scorer = Scorer(net, stride=8)
         size = args.patch_size if scorer.output == "patch" else args.size
         img = (rng.random((size, size, 3)) * 4).astype(np.float32)
         twin = (rng.random((size, size, 3)) * 4).astype(np.float32) if scorer.needs_twin else None
+        if args.unfolded and scorer.output == "map":
+            rows.append(_against_unfolded(name, scorer, net, img, twin, args.repeats))
+            continue
         strides = (1, 4, 8, 16) if scorer.output == "patch" else (None,)
         for stride in strides:
             if stride is not None:
@@ -101,6 +109,36 @@ def throughput(args) -> str:
             rows.append([name, size, stride or "-", f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
             print(f"  throughput {name} stride={stride}: {t:.3f} s", file=sys.stderr)
     return markdown_table(rows, ["model", "side (px)", "stride", "ms / image", "Mpix/s"])
+
+
+def _against_unfolded(name: str, scorer: Scorer, net: torch.nn.Module, img, twin, repeats: int) -> list:
+    """One row: the Scorer as shipped (batch norm folded) and the same Scorer running ``net`` as trained.
+
+    The two alternate within each repeat, so load changes hit both; the ratio is the median of the
+    per-repeat ratios (folded / unfolded), and the largest difference of their maps is reported too.
+    """
+    unfolded = copy.copy(scorer)
+    unfolded.net = net.eval()
+    score = [lambda s=s: s(img, hdr=True, twin=twin) for s in (scorer, unfolded)]
+    diff = float(np.abs(np.asarray(score[0]().map) - np.asarray(score[1]().map)).max())
+    times = [[], []]
+    for _ in range(repeats):
+        for k in (0, 1):
+            t0 = time.perf_counter()
+            score[k]()
+            times[k].append(time.perf_counter() - t0)
+    ratio = statistics.median(a / b for a, b in zip(*times))
+    folded_s, unfolded_s = (statistics.median(t) for t in times)
+    side = img.shape[0]
+    print(f"  throughput {name}: folded {folded_s:.3f} s, unfolded {unfolded_s:.3f} s", file=sys.stderr)
+    return [
+        f"{name} (unfolded: {unfolded_s * 1e3:.1f} ms, {side * side / unfolded_s / 1e6:.3g} Mpix/s; "
+        f"folded / unfolded {ratio:.3f}; maps differ by {diff:.1e})",
+        side,
+        "-",
+        f"{folded_s * 1e3:.1f}",
+        f"{side * side / folded_s / 1e6:.3g}",
+    ]
 
 
 _MEMORY_CHILD = r"""
@@ -236,6 +274,11 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="throughput: time the shipped weights of these names as users get them (e.g. unet_fast's 64x64 "
         "windows), not untrained registered models",
+    )
+    ap.add_argument(
+        "--unfolded",
+        action="store_true",
+        help="throughput: also time each map model with its batch norm unfolded (as trained), alternating",
     )
     ap.add_argument("--patch-size", type=int, default=128)
     ap.add_argument("--repeats", type=int, default=3)

@@ -187,3 +187,28 @@ def test_accuracy_section_with_a_checkpoint_dir_scores_only_its_checkpoints(tmp_
     )
     table = (tmp_path / "out" / "scorer.md").read_text()
     assert "no weights: no *.ckpt under" in table and "shipped:" not in table
+
+
+@pytest.mark.usefixtures("one_thread")
+def test_throughput_section_times_folded_against_unfolded(tmp_path):
+    load_benchmark().main(
+        [
+            "--out",
+            str(tmp_path),
+            "--skip",
+            "memory,accuracy,range,stop,render",
+            "--models",
+            "fcnn_fast,unet_fast",
+            "--size",
+            "64",
+            "--repeats",
+            "2",
+            "--unfolded",
+        ]
+    )
+    table = (tmp_path / "scorer.md").read_text()
+    for name in ("fcnn_fast", "unet_fast"):
+        row = next(line for line in table.splitlines() if line.startswith(f"| {name} (unfolded"))
+        ratio = float(row.split("folded / unfolded ")[1].split(";")[0])
+        diff = float(row.split("maps differ by ")[1].split(")")[0])
+        assert ratio > 0 and diff < 1e-4
