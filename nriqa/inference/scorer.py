@@ -58,7 +58,8 @@ class Scorer:
         net: a registered model (:mod:`nriqa.models`) with ``output`` ``"map"`` (predicts an SSIM
             map, thesis ch. 5 experiment II) or ``"patch"`` (predicts the MAE of a 32x32 patch,
             experiment I). The Scorer runs a copy in eval mode with batch norm folded into the
-            convolutions (:func:`nriqa.inference.folding.fold_batchnorm`); ``net`` itself is not changed.
+            convolutions (:func:`nriqa.inference.folding.fold_batchnorm`); ``net`` itself is not changed,
+            and weights it learns later are not seen (make a new Scorer).
         tile: side of the square output tiles a map model is run on, a multiple of its ``align``
             (rounded up if not). Images whose sides are both at most ``tile`` go in one forward;
             ``0`` never tiles. For the patch model it caps the windows per forward at ``tile * 4``.
