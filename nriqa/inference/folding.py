@@ -4,8 +4,9 @@ In eval mode a ``BatchNorm2d`` is a fixed per-channel affine map, ``y = g (x - m
 convolution followed by it is one convolution with scaled weights and a shifted bias (Ioffe & Szegedy
 2015, sec. 3.2; ``torch.nn.utils.fusion.fuse_conv_bn_eval``). Every model here builds its blocks as
 ``Conv -> BN -> ReLU`` in ``nn.Sequential`` containers (:func:`nriqa.models.fcnn.conv_bn_relu`), so
-folding each adjacent pair saves the batch-norm pass -- about a tenth of ``unet_fast``'s time on a CPU
-(docs/results/scorer_frontier.md) -- and changes the map by float rounding only (~1e-6).
+folding each adjacent pair saves the batch-norm pass -- a fifth of ``fcnn_fast``'s time per image on a CPU,
+a twentieth of ``unet_fast``'s (docs/results/scorer_frontier.md) -- and changes the map by float rounding only
+(~1e-6).
 
     >>> fast = fold_batchnorm(net)  # doctest: +SKIP  a folded copy; ``net`` is left as it was
 """
