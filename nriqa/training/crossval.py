@@ -48,6 +48,11 @@ def fold_scenes(cfg: DictConfig) -> list[str]:
     With ``data.scenes`` only those families exist for the folds (held-back families are neither
     trained on nor held out).
     """
+    if cfg.get("init_from"):
+        raise FoldError(
+            f"init_from={cfg.init_from}: leave-one-scene-out must start every fold from random weights (trained "
+            "weights may have learnt the held-out scene); drop init_from, or fine-tune with nriqa-train"
+        )
     scenes = cfg.data.get("scenes")
     available = scenes_of(noisy_records(only_scenes(read_datasets(cfg.data.data_dir), scenes and list(scenes))))
     wanted = list(cfg.crossval.scenes) if cfg.crossval.get("scenes") else available

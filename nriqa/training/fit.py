@@ -16,6 +16,7 @@ import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.module import NRIQAModule
+from nriqa.training.warm_start import warm_start
 
 
 def source_checkout() -> Path | None:
@@ -93,6 +94,9 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
     model: NRIQAModule = hydra.utils.instantiate(cfg.model)
+    if cfg.get("init_from"):
+        warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
+        model.hparams.update({"init_from": str(cfg.init_from), "init_member": cfg.get("init_member")})
     callbacks = _instantiate_group(cfg.get("callbacks"))
     loggers = _instantiate_group(cfg.get("logger"))
     trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
