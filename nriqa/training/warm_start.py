@@ -48,9 +48,13 @@ def _member(net: nn.Module, source: str, member: int | None) -> nn.Module:
             )
         return net
     if members is None:
-        raise WarmStartError(f"init_member={member}, but init_from={source} is a single network; leave init_member unset")
+        raise WarmStartError(
+            f"init_member={member}, but init_from={source} is a single network; leave init_member unset"
+        )
     if not 0 <= member < len(members):
-        raise WarmStartError(f"init_member={member} is out of range: init_from={source} has members 0..{len(members) - 1}")
+        raise WarmStartError(
+            f"init_member={member} is out of range: init_from={source} has members 0..{len(members) - 1}"
+        )
     return members[member]
 
 
