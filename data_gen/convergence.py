@@ -190,25 +190,41 @@ def reference_noise(root: str | Path, records: list[Record]) -> list[dict]:
     return rows
 
 
+def drop_rungs(records: list[Record], rungs: list[dict]) -> list[Record]:
+    """``records`` without the test images and twins of ``rungs`` (rows with scene, variant, algorithm, spp).
+
+    What :func:`reference_noise` flags: a target measured against a reference too noisy for it is not
+    trained on (thesis ch. 4). References and the other rungs stay; the files stay on disk.
+    """
+    gone = {(r["scene"], r["variant"], r["algorithm"], r["spp"]) for r in rungs}
+    return [r for r in records if r.role == "reference" or (r.scene, r.variant, r.algorithm, r.spp) not in gone]
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m data_gen.convergence DATA [--out DIR] [--every-rung]``: both checks over a dataset.
+    """``python -m data_gen.convergence DATA [--out DIR] [--every-rung] [--drop-noisy]``: both checks over a dataset.
 
     Writes ``verdicts.csv`` (convergence) and ``reference_noise.csv`` (every rung) to ``DIR``
     (default ``DATA/checks``), prints each failure, and exits 1 if anything failed, 2 on bad input.
+    ``--drop-noisy`` rewrites the manifest without the rungs whose reference is too noisy (listed in
+    its ``meta``, files kept), so that nothing trains on their targets; those rungs then count as handled.
+    Rerendering into DATA writes the full manifest again: run the check with ``--drop-noisy`` after it.
     """
     import argparse
     import sys
 
-    from nriqa.io.manifest import ManifestError, read_manifest
+    from nriqa.io.manifest import ManifestError, read_manifest, write_manifest
     from nriqa.io.tables import write_csv
 
     parser = argparse.ArgumentParser(prog="python -m data_gen.convergence", description=main.__doc__.splitlines()[0])
     parser.add_argument("data", type=Path, help="dataset root (holds manifest.json)")
     parser.add_argument("--out", type=Path, default=None, help="folder for the CSV files (default: DATA/checks)")
     parser.add_argument("--every-rung", action="store_true", help="convergence of every rung, not only each top rung")
+    parser.add_argument(
+        "--drop-noisy", action="store_true", help="rewrite the manifest without the rungs whose reference is too noisy"
+    )
     args = parser.parse_args(argv)
     try:
-        records, _ = read_manifest(args.data)
+        records, meta = read_manifest(args.data)
     except ManifestError as exc:
         print(f"data_gen.convergence: error: {exc}", file=sys.stderr)
         return 2
@@ -233,6 +249,13 @@ def main(argv: list[str] | None = None) -> int:
         f"wrote {out}: {len(verdicts)} verdicts ({len(failed)} not converged), "
         f"{len(noise)} rungs ({len(noisy)} with a reference too noisy, ratio > {MAX_REFERENCE_NOISE})"
     )
+    if args.drop_noisy and noisy:
+        kept = drop_rungs(records, noisy)
+        dropped = [f"{n['scene']}/v{n['variant']:03d}/{n['algorithm']}/{n['spp']}" for n in noisy]
+        meta = {**meta, "dropped_noisy_reference": sorted({*meta.get("dropped_noisy_reference", []), *dropped})}
+        write_manifest(args.data, kept, meta)
+        print(f"rewrote {args.data / 'manifest.json'}: {len(records) - len(kept)} images of {len(noisy)} rungs dropped")
+        noisy = []
     return 1 if failed or noisy else 0
 
 

@@ -346,6 +346,22 @@ def test_checks_command_passes_on_the_new_families_and_fails_on_a_reference_too_
     assert "reference too noisy: cornell v000 path_independent 16 spp (ratio 0.5)" in capsys.readouterr().out
     assert main([str(tmp_path / "nowhere")]) == 2
 
+    # --drop-noisy: the failing rungs leave the manifest (files stay), the rest and the reference stay
+    before, _ = read_manifest(tmp_path / "cornell")
+    capsys.readouterr()
+    assert main([str(tmp_path / "cornell"), "--drop-noisy"]) == 0
+    assert "images of" in capsys.readouterr().out
+    after, meta = read_manifest(tmp_path / "cornell")
+    assert "cornell/v000/path_independent/16" in meta["dropped_noisy_reference"]
+    assert not [r for r in after if r.role != "reference" and r.algorithm == "path_independent" and r.spp == 16]
+    assert {r.id for r in after} < {r.id for r in before} and any(r.role == "reference" for r in after)
+    assert all((tmp_path / "cornell" / r.path).is_file() for r in before)
+    main([str(tmp_path / "cornell")])
+    rows = (tmp_path / "cornell" / "checks" / "reference_noise.csv").read_text().splitlines()
+    assert not [row for row in rows if row.startswith("cornell,0,path_independent,16,")], (
+        "a dropped rung is not checked"
+    )
+
 
 def test_random_materials_and_standing_shapes_load_in_mitsuba():
     from data_gen.scenes._parts import MATERIALS, SHAPES, random_material, standing_shape
