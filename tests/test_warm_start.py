@@ -21,10 +21,10 @@ def _equal_states(a: torch.nn.Module, b: torch.nn.Module) -> bool:
 
 @pytest.mark.parametrize("member", [0, 1])
 def test_one_member_of_shipped_average(member):
-    shipped = load_pretrained("unet_fast")
-    net = create_model("unet_fast", window=64)
+    shipped = load_pretrained("dual_fast")  # the mean of two runs (map_mean)
+    net = create_model("dual_fast")
     assert not _equal_states(net, shipped.members[member])
-    assert warm_start(net, "unet_fast", member) is net
+    assert warm_start(net, "dual_fast", member) is net
     assert _equal_states(net, shipped.members[member])
     assert not _equal_states(net, shipped.members[1 - member])  # the two runs differ: the right one was taken
 
@@ -44,14 +44,14 @@ def test_single_network_and_checkpoint(tmp_path, synthetic_dataset):
 @pytest.mark.parametrize(
     ("source", "member", "message"),
     [
-        ("unet_fast", None, r"averages 2 networks; pick the one to start from with init_member=0\.\.1"),
-        ("unet_fast", 2, r"init_member=2 is out of range: .* has members 0\.\.1"),
+        ("dual_fast", None, r"averages 2 networks; pick the one to start from with init_member=0\.\.1"),
+        ("dual_fast", 2, r"init_member=2 is out of range: .* has members 0\.\.1"),
         ("fcnn_fast", 0, "is a single network; leave init_member unset"),
     ],
 )
 def test_member_choice_errors(source, member, message):
     with pytest.raises(WarmStartError, match=message):
-        warm_start(create_model("unet_fast", window=64), source, member)
+        warm_start(create_model("dual_fast"), source, member)
 
 
 def test_weights_of_another_model_load_nothing():
