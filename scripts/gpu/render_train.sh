@@ -12,7 +12,7 @@
 # batch 8, the GPU trainer, no validation scene). Its last checkpoint is copied to $OUT/NAME.ckpt.
 # Settings (environment, seconds counted from the start of this script):
 #   SITE=.dev/site312.tar.xz  SEED=3 (base seed of the scenes)  STAGES="3 8 16 28 40" (cumulative variants)
-#   RES=64  TOP=1024 (ladder top; references 16x)  RENDER_END=250  END=510 (training stops by then)
+#   RES=64  TOP=1024 (ladder top; references 16x)  SCENES= (a list such as [cornell,door]; default: the preset's)  RENDER_END=250  END=510 (training stops by then)
 #   BACKEND=cuda_ad_rgb (scalar_rgb to try the script on a CPU)  JOBS=14 (render processes sharing the GPU)  WORKERS=7 (patch loaders per run)  EXPERIMENT=unet_fast
 #   CHECK_BACKENDS=1: first render one variant per family with cuda_ad_rgb and with scalar_rgb (ladder to 64)
 #   and print the true mean SSIM of each rung under both: whether the backends' noise agrees.
@@ -42,7 +42,7 @@ BACKEND=${BACKEND:-cuda_ad_rgb}
 
 render() { # OUTDIR VARIANTS BACKEND JOBS LADDER_TOP SECONDS
   timeout "$6" "$PY" -m data_gen preset=v2 out="$1" seed="${SEED:-3}" variants="$2" \
-    "resolution=[${RES:-64},${RES:-64}]" ladder_top="$5" reference_factor=16 backend="$3" jobs="$4"
+    "resolution=[${RES:-64},${RES:-64}]" ladder_top="$5" reference_factor=16 backend="$3" jobs="$4" ${SCENES:+"scenes=$SCENES"}
 }
 
 if [ -n "${CHECK_BACKENDS:-}" ]; then
