@@ -53,33 +53,27 @@ if [ -n "${CHECK_BACKENDS:-}" ]; then
     echo "[$(el)] check $b rc=$? $(($(date +%s) - s)) s"
   done
   "$PY" - <<'P'
-import collections
-import torch
-from nriqa.core.ssim import ssim_map
-from nriqa.core.tonemap import tonemap
-from nriqa.io.exr import read_exr
+from collections import defaultdict
+from pathlib import Path
+
+from data_gen.report import error_rows
 from nriqa.io.manifest import read_manifest
 
-def ladder(root):
-    out = collections.defaultdict(list)
-    records, _ = read_manifest(root)
-    for r in records:
-        if r.role != "test":
-            continue
-        x, y = (tonemap(torch.from_numpy(read_exr(f"{root}/{p}")).permute(2, 0, 1)[None]) for p in (r.path, r.reference))
-        out[(r.scene, r.spp)].append(float(ssim_map(x, y).mean()))
-    return {k: sum(v) / len(v) for k, v in out.items()}
+def ladder(root):  # (scene, algorithm, spp) -> true mean SSIM, as data_gen.report measures it
+    return {(r["scene"], r["algorithm"], r["spp"]): 1 - r["one_minus_ssim"] for r in error_rows(Path(root), read_manifest(root)[0])}
 
 try:
     c, s = ladder("/tmp/check_cuda_ad_rgb"), ladder("/tmp/check_scalar_rgb")
 except Exception as exc:  # a check, not the run: say why and go on
     print("backend check failed:", exc)
 else:
+    by_spp = defaultdict(list)
+    for key in c.keys() & s.keys():
+        by_spp[key[2]].append((c[key], s[key]))
     print("true mean SSIM per rung: cuda_ad_rgb / scalar_rgb (difference)")
-    for spp in sorted({k[1] for k in c}):
-        keys = [k for k in c if k[1] == spp and k in s]
-        dc = sum(c[k] for k in keys) / len(keys); ds = sum(s[k] for k in keys) / len(keys)
-        print(f"  {spp:5d} spp: {dc:.4f} / {ds:.4f} ({dc - ds:+.4f}) over {len(keys)} families")
+    for spp, pairs in sorted(by_spp.items()):
+        dc, ds = (sum(p[i] for p in pairs) / len(pairs) for i in (0, 1))
+        print(f"  {spp:5d} spp: {dc:.4f} / {ds:.4f} ({dc - ds:+.4f}) over {len(pairs)} ladders")
 P
 fi
 
@@ -106,10 +100,11 @@ echo "[$(el)] dataset: $GOOD variants, $(du -sh "$D" | cut -f1)"
 secs=$((END - $(el) - ${LOAD_MARGIN:-60}))
 [ $secs -gt 30 ] || { echo "no time left to train ($secs s)"; exit 4; }
 mt=$(printf "'00:00:%02d:%02d'" $((secs / 60)) $((secs % 60)))
-pids=()
+pids=() names=()
 for run in "$@"; do
   name=${run%% *}
   overrides=${run#"$name"}
+  names+=("$name")
   # shellcheck disable=SC2086  # the overrides are words on purpose
   "$PY" train.py experiment="$EXPERIMENT" paths.data_dir="$D" data.patch_size=64 data.batch_size=8 trainer=${TRAINER:-gpu} \
     data.num_workers="${WORKERS:-7}" schedule.map.epochs=100000 "+trainer.max_time=$mt" \
@@ -117,12 +112,10 @@ for run in "$@"; do
   pids+=($!)
 done
 echo "[$(el)] ${#pids[@]} runs, $secs s each"
-i=0
-for run in "$@"; do
-  name=${run%% *}
+for i in "${!pids[@]}"; do
+  name=${names[$i]}
   wait "${pids[$i]}"
   echo "[$(el)] $name rc=$? $(tail -n 1 "$OUT/train_$name.log")"
   cp "/tmp/runs/$name/checkpoints/last.ckpt" "$OUT/$name.ckpt" 2>/dev/null
-  i=$((i + 1))
 done
 ls -la "$OUT"
