@@ -15,6 +15,7 @@ import hydra
 import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.module import NRIQAModule
 from nriqa.training.warm_start import warm_start
 
@@ -93,10 +94,13 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     datamodule = hydra.utils.instantiate(cfg.data)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
-    model: NRIQAModule = hydra.utils.instantiate(cfg.model)
+    model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn") or False))
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
         model.hparams.update({"init_from": str(cfg.init_from), "init_member": cfg.get("init_member")})
+    if cfg.get("bn_estimate"):
+        used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), int(cfg.bn_estimate))
+        model.hparams.update({"bn_estimate": used})
     callbacks = _instantiate_group(cfg.get("callbacks"))
     loggers = _instantiate_group(cfg.get("logger"))
     trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)

@@ -18,6 +18,7 @@ from torchmetrics import CatMetric, MeanMetric
 
 from nriqa.core.sampling import evenly_spaced, metric_samples
 from nriqa.models import create_model
+from nriqa.training.batchnorm import freeze_batchnorm
 from nriqa.training.metrics import correlations
 
 STAGES = ("train", "val")
@@ -57,6 +58,8 @@ class NRIQAModule(L.LightningModule):
         metric_pixels_per_map: pixels per predicted map fed to the correlations.
         max_metric_samples: cap on correlation samples per stage and epoch.
         stop_on_nonfinite: stop training at the first NaN/Inf loss.
+        freeze_bn: keep every batch-norm layer in eval mode while training (running statistics fixed,
+            :func:`nriqa.training.batchnorm.freeze_batchnorm`): the network trained is the one run.
     """
 
     def __init__(
@@ -69,6 +72,7 @@ class NRIQAModule(L.LightningModule):
         metric_pixels_per_map: int = 16,
         max_metric_samples: int = 2048,
         stop_on_nonfinite: bool = True,
+        freeze_bn: bool = False,
     ) -> None:
         super().__init__()
         if isinstance(net, nn.Module):
@@ -84,6 +88,7 @@ class NRIQAModule(L.LightningModule):
         self.metric_pixels_per_map = metric_pixels_per_map
         self.max_metric_samples = max_metric_samples
         self.stop_on_nonfinite = stop_on_nonfinite
+        self.freeze_bn = bool(freeze_bn)
         self.save_hyperparameters(
             {
                 "net": net_spec,
@@ -92,6 +97,7 @@ class NRIQAModule(L.LightningModule):
                 "scheduler": _describe(scheduler),
                 "metric_pixels_per_map": metric_pixels_per_map,
                 "max_metric_samples": max_metric_samples,
+                "freeze_bn": self.freeze_bn,
             }
         )
         for stage in STAGES:
@@ -106,6 +112,12 @@ class NRIQAModule(L.LightningModule):
 
     def forward(self, x: Tensor) -> Tensor:
         return self.net(x)
+
+    def on_train_batch_start(self, batch, batch_idx: int) -> None:
+        # Lightning sets and restores modes itself (validation captures and restores each module's),
+        # so the layers are put back in eval mode before every step, not once.
+        if self.freeze_bn:
+            freeze_batchnorm(self.net)
 
     def _step(self, batch, stage: str) -> Tensor:
         x, y = batch
