@@ -96,6 +96,17 @@ def test_without_val_scene_keeps_the_last_checkpoint(synthetic_dataset, tmp_path
     assert load_net_from_checkpoint(objects["best_ckpt"]).output == "map"
 
 
+def test_cosine_schedule_anneals_the_rate_to_zero_over_the_run(synthetic_dataset, tmp_path):
+    cfg = compose_cfg(
+        tmp_path, synthetic_dataset, "experiment=fcnn_fast", "+model/scheduler=cosine", "+model.net.width=8"
+    )
+    assert cfg.model.scheduler.T_max == cfg.trainer.max_epochs == 2  # the smoke schedule's epochs
+    _, objects = train(cfg)
+    optimizer = objects["trainer"].optimizers[0]
+    assert optimizer.param_groups[0]["lr"] == pytest.approx(0.0, abs=1e-12)
+    assert objects["trainer"].lr_scheduler_configs[0].scheduler.base_lrs == [cfg.schedule.map.lr]
+
+
 def test_several_dataset_roots_from_the_command_line(synthetic_dataset, tmp_path):
     other = make_dataset(tmp_path / "longer", size=64, scenes=("alpha",), spps=(256,))
     cfg = compose_cfg(
