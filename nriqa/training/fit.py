@@ -94,7 +94,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     datamodule = hydra.utils.instantiate(cfg.data)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
-    model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn") or False))
+    model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn")))
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
         model.hparams.update({"init_from": str(cfg.init_from), "init_member": cfg.get("init_member")})
