@@ -18,7 +18,8 @@ from nriqa.data.images import ImagePair
 from nriqa.data.jitter import apply_jitter, sample_jitter
 from nriqa.data.targets import check_target, compute_target
 
-_TONEMAP = Display("tonemap")
+# The display renders go through at inference (EXR input): the package tone map.
+TONEMAP = Display("tonemap")
 
 
 def item_generator(seed: int, index: int) -> torch.Generator:
@@ -57,7 +58,7 @@ def displayed(pair: ImagePair, patches: tuple[Tensor, ...], display: Display) ->
     for every member, so a noisy patch, its twin and its reference stay comparable.
     """
     if not pair.linear:
-        if display != _TONEMAP:
+        if display != TONEMAP:
             raise ValueError("display transforms need linear image pairs; load them with linear=True")
         return list(patches)
     return [apply_display(p, display, pair.key) for p in patches]
@@ -71,9 +72,9 @@ def network_input(noisy: Tensor, twin: Tensor | None) -> Tensor:
 class TrainPatches(Dataset):
     """Random jittered training patches; item ``k`` is ``(input, target)`` drawn from ``(seed, k)``.
 
-    The image is picked uniformly, then the position, then (with ``display``) a display transform,
-    then the jitter, each applied to noisy image, twin and reference alike, and the target is
-    computed from the displayed, jittered pair. ``input`` is the noisy patch ``(3,P,P)``, or with
+    The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
+    ``display``) a display transform, then the jitter, each applied to noisy image, twin and reference
+    alike, and the target is computed from the displayed, jittered pair. ``input`` is the noisy patch ``(3,P,P)``, or with
     ``twins`` the noisy patch and its twin's ``(6,P,P)``. Any ``k >= 0`` is valid; ``len`` is the
     number of items per epoch.
     """
@@ -103,15 +104,41 @@ class TrainPatches(Dataset):
         self.geometric = geometric
         self.display = display
         self.twins = twins
+        self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
         return self.length
 
+    def set_weights(self, weights: Tensor | None) -> None:
+        """Draw image ``i`` with probability ``weights[i] / sum(weights)`` from now on; ``None``: uniformly.
+
+        Item ``k`` stays a pure function of ``(seed, k)`` and the weights.
+
+        Raises:
+            ValueError: not one weight per image, a negative or non-finite weight, or all zero.
+        """
+        if weights is None:
+            self.cdf = None
+            return
+        w = torch.as_tensor(weights, dtype=torch.float64).flatten()
+        if w.numel() != len(self.pairs):
+            raise ValueError(f"set_weights needs one weight per training image ({len(self.pairs)}), got {w.numel()}")
+        if not bool(torch.isfinite(w).all()) or bool((w < 0).any()) or float(w.sum()) <= 0.0:
+            raise ValueError("set_weights needs finite, non-negative weights with a positive sum")
+        self.cdf = torch.cumsum(w, 0) / w.sum()
+
+    def pick(self, g: torch.Generator) -> ImagePair:
+        """The image of one draw: uniform, or by the weights of :meth:`set_weights`."""
+        if self.cdf is None:
+            return self.pairs[int(torch.randint(0, len(self.pairs), (1,), generator=g))]
+        u = torch.rand(1, generator=g, dtype=torch.float64)
+        return self.pairs[min(int(torch.searchsorted(self.cdf, u, right=True)), len(self.pairs) - 1)]
+
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
         g = item_generator(self.seed, index)
-        pair = self.pairs[int(torch.randint(0, len(self.pairs), (1,), generator=g))]
+        pair = self.pick(g)
         members = cut_all(pair, g, self.patch_size, self.twins)
-        display = self.display.sample(g) if self.display is not None else _TONEMAP
+        display = self.display.sample(g) if self.display is not None else TONEMAP
         members = displayed(pair, members, display)
         if self.hsv or self.geometric:
             params = sample_jitter(g, hsv=self.hsv, geometric=self.geometric)
@@ -169,7 +196,7 @@ def fixed_patches(
     cuts = []
     for i in range(n):
         pair = pairs[i % len(pairs)]
-        cuts.append(displayed(pair, cut_all(pair, g, patch_size, twins), _TONEMAP))
+        cuts.append(displayed(pair, cut_all(pair, g, patch_size, twins), TONEMAP))
     noisy = torch.stack([c[0] for c in cuts])
     ref = torch.stack([c[1] for c in cuts])
     inputs = network_input(noisy, torch.stack([c[2] for c in cuts]) if twins else None)

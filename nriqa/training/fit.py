@@ -16,6 +16,7 @@ import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
+from nriqa.training.hard_sampling import check_mix, draw_summary, image_errors, sampling_weights
 from nriqa.training.module import NRIQAModule
 from nriqa.training.warm_start import warm_start
 
@@ -94,6 +95,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     datamodule = hydra.utils.instantiate(cfg.data)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
+    mix = check_mix((cfg.get("hard_sampling") or {}).get("mix") or 0.0)
     model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn")))
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
@@ -101,6 +103,16 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.get("bn_estimate"):
         used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), int(cfg.bn_estimate))
         model.hparams.update({"bn_estimate": used})
+    if mix:
+        errors = image_errors(model.net, datamodule.train_pairs)
+        weights = sampling_weights(errors, mix)
+        datamodule.train_set.set_weights(weights)
+        summary = draw_summary(errors, weights)
+        model.hparams.update({"hard_sampling": {"mix": mix, **summary}})
+        print(
+            f"hard sampling: {int(summary['images'])} images, mean error {summary['mean_error']:.4f}; the 1 % read "
+            f"worst (error {summary['worst_1pct_error']:.3f}) get {summary['worst_1pct_share']:.1%} of the draws"
+        )
     callbacks = _instantiate_group(cfg.get("callbacks"))
     loggers = _instantiate_group(cfg.get("logger"))
     trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)

@@ -1,0 +1,103 @@
+"""Hard-example sampling: draw training images in proportion to how wrong a model reads them.
+
+Training draws its images uniformly, so an image the model misreads gets the same share of the steps as
+one it already reads right. When a fine-tune starts from trained weights, the rare images it gets most
+wrong (particle tracing at 2 spp in a dark room: a few splats on black, read as far better than they are)
+are a fraction of a percent of the draws and stay wrong. :func:`image_errors` measures the starting
+network on every training image as users run it (the :class:`~nriqa.inference.scorer.Scorer`, package
+tone map, the model's windows) against the image's true mean SSIM; :func:`sampling_weights` turns those
+errors into draw probabilities, a fraction ``mix`` in proportion to the error and the rest uniform, so
+every image keeps a share. ``nriqa-train ... hard_sampling.mix=M`` does both after ``init_from``
+(:func:`nriqa.training.fit.train`); :meth:`nriqa.data.patches.TrainPatches.set_weights` draws by them.
+
+    >>> [round(p, 4) for p in sampling_weights(torch.tensor([0.0, 0.1, 0.3]), 0.5).tolist()]
+    [0.1667, 0.2917, 0.5417]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+from torch import Tensor, nn
+
+from nriqa.data.images import ImagePair
+from nriqa.data.patches import TONEMAP, displayed
+from nriqa.data.targets import compute_target
+
+__all__ = ["check_mix", "draw_summary", "image_errors", "sampling_weights"]
+
+
+@torch.no_grad()
+def image_errors(net: nn.Module, pairs: Sequence[ImagePair], batch_size: int = 64) -> Tensor:
+    """``|predicted - true|`` mean SSIM of each pair's noisy image through the package tone map, ``(N,)`` float64.
+
+    The prediction is the Scorer's score with ``net`` (a copy in eval mode; ``net`` is left as it is,
+    its windows included); the truth is the mean of the SSIM map of the tone-mapped noisy image
+    against its reference. A two-buffer model is given each pair's twin.
+    """
+    from nriqa.inference.scorer import Scorer
+
+    if not pairs:
+        raise ValueError("image_errors needs at least one image pair")
+    scorer = Scorer(net)
+    out = torch.empty(len(pairs), dtype=torch.float64)
+    start = 0
+    while start < len(pairs):
+        shape = pairs[start].noisy.shape
+        stop = start
+        while stop < len(pairs) and stop - start < batch_size and pairs[stop].noisy.shape == shape:
+            stop += 1
+        chunk = pairs[start:stop]
+        shown = [displayed(p, (p.noisy, p.ref) + ((p.twin,) if scorer.needs_twin else ()), TONEMAP) for p in chunk]
+        noisy = torch.stack([s[0] for s in shown])
+        ref = torch.stack([s[1] for s in shown])
+        twin = torch.stack([s[2] for s in shown]) if scorer.needs_twin else None
+        predicted = scorer(noisy, hdr=False, twin=twin).score.double()
+        true = compute_target("ssim_map", noisy, ref).mean(dim=(1, 2, 3), dtype=torch.float64)
+        out[start:stop] = (predicted - true).abs()
+        start = stop
+    return out
+
+
+def check_mix(mix: float) -> float:
+    """``mix`` as a float; outside [0, 1] a one-line ``ValueError``."""
+    if not 0.0 <= float(mix) <= 1.0:
+        raise ValueError(f"hard_sampling.mix must be in [0, 1], got {mix}")
+    return float(mix)
+
+
+def sampling_weights(errors: Tensor, mix: float) -> Tensor:
+    """Draw probabilities ``(1 - mix) / N + mix * e_i / sum(e)``, ``(N,)`` float64 summing to 1.
+
+    ``mix = 0`` is uniform; ``mix = 1`` draws only in proportion to the error. Errors that are all zero
+    give uniform draws.
+
+    Raises:
+        ValueError: ``mix`` outside [0, 1], no errors, or an error that is negative or not finite.
+    """
+    mix = check_mix(mix)
+    e = torch.as_tensor(errors, dtype=torch.float64).flatten()
+    if e.numel() == 0:
+        raise ValueError("sampling_weights needs at least one error")
+    if not bool(torch.isfinite(e).all()) or bool((e < 0).any()):
+        raise ValueError("sampling_weights needs finite, non-negative errors")
+    uniform = torch.full_like(e, 1.0 / e.numel())
+    total = float(e.sum())
+    if total == 0.0:
+        return uniform
+    return (1.0 - mix) * uniform + mix * e / total
+
+
+def draw_summary(errors: Tensor, weights: Tensor) -> dict[str, float]:
+    """Figures for the log: mean error, and the share of draws going to the 1 % of images read worst."""
+    e = torch.as_tensor(errors, dtype=torch.float64)
+    w = torch.as_tensor(weights, dtype=torch.float64)
+    top = max(1, e.numel() // 100)
+    worst = torch.topk(e, top).indices
+    return {
+        "images": float(e.numel()),
+        "mean_error": float(e.mean()),
+        "worst_1pct_error": float(e[worst].mean()),
+        "worst_1pct_share": float(w[worst].sum() / w.sum()),
+    }
