@@ -28,6 +28,10 @@ def test_weights_mix_uniform_and_error_proportional():
     half = sampling_weights(e, 0.5)
     torch.testing.assert_close(half, torch.tensor([0.125, 0.25, 0.5, 0.125], dtype=torch.float64))
     assert float(half.sum()) == pytest.approx(1.0)
+    # power 2: in proportion to the squared error
+    torch.testing.assert_close(
+        sampling_weights(e, 1.0, power=2), torch.tensor([0.0, 0.1, 0.9, 0.0], dtype=torch.float64)
+    )
     # nothing misread: uniform, whatever the mix
     torch.testing.assert_close(sampling_weights(torch.zeros(3), 0.8), torch.full((3,), 1 / 3, dtype=torch.float64))
 
@@ -45,6 +49,8 @@ def test_weights_mix_uniform_and_error_proportional():
 def test_weights_refuse_bad_input(errors, mix, message):
     with pytest.raises(ValueError, match=message):
         sampling_weights(torch.tensor(errors), mix)
+    with pytest.raises(ValueError, match="power must be > 0"):
+        sampling_weights(torch.tensor([0.1]), 0.5, power=0)
 
 
 def test_summary_gives_the_worst_images_share_of_draws():
@@ -111,11 +117,20 @@ def test_two_buffer_model_is_given_the_twins(synthetic_dataset):
 
 def test_fine_tune_draws_by_the_starting_error(tmp_path, synthetic_dataset):
     cfg = compose_cfg(
-        tmp_path, synthetic_dataset, "experiment=fcnn_fast", "init_from=fcnn_fast", "hard_sampling.mix=0.5"
+        tmp_path,
+        synthetic_dataset,
+        "experiment=fcnn_fast",
+        "init_from=fcnn_fast",
+        "hard_sampling.mix=0.5",
+        "hard_sampling.power=2",
     )
     _, objects = train(cfg)
     summary = objects["model"].hparams["hard_sampling"]
-    assert summary["mix"] == 0.5 and summary["images"] == len(objects["datamodule"].train_pairs)
+    assert (
+        summary["mix"] == 0.5
+        and summary["power"] == 2.0
+        and summary["images"] == len(objects["datamodule"].train_pairs)
+    )
     cdf = objects["datamodule"].train_set.cdf
     assert cdf is not None and float(cdf[-1]) == pytest.approx(1.0)
     # uniform by default

@@ -95,7 +95,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     datamodule = hydra.utils.instantiate(cfg.data)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
-    mix = check_mix((cfg.get("hard_sampling") or {}).get("mix") or 0.0)
+    hard = cfg.get("hard_sampling") or {}
+    mix, power = check_mix(hard.get("mix") or 0.0), float(hard.get("power") or 1.0)
     model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn")))
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
@@ -105,10 +106,10 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         model.hparams.update({"bn_estimate": used})
     if mix:
         errors = image_errors(model.net, datamodule.train_pairs)
-        weights = sampling_weights(errors, mix)
+        weights = sampling_weights(errors, mix, power)
         datamodule.train_set.set_weights(weights)
         summary = draw_summary(errors, weights)
-        model.hparams.update({"hard_sampling": {"mix": mix, **summary}})
+        model.hparams.update({"hard_sampling": {"mix": mix, "power": power, **summary}})
         print(
             f"hard sampling: {int(summary['images'])} images, mean error {summary['mean_error']:.4f}; the 1 % read "
             f"worst (error {summary['worst_1pct_error']:.3f}) get {summary['worst_1pct_share']:.1%} of the draws"

@@ -6,8 +6,8 @@ wrong (particle tracing at 2 spp in a dark room: a few splats on black, read as 
 are a fraction of a percent of the draws and stay wrong. :func:`image_errors` measures the starting
 network on every training image as users run it (the :class:`~nriqa.inference.scorer.Scorer`, package
 tone map, the model's windows) against the image's true mean SSIM; :func:`sampling_weights` turns those
-errors into draw probabilities, a fraction ``mix`` in proportion to the error and the rest uniform, so
-every image keeps a share. ``nriqa-train ... hard_sampling.mix=M`` does both after ``init_from``
+errors into draw probabilities, a fraction ``mix`` in proportion to the error (or a ``power`` of it) and the
+rest uniform, so every image keeps a share. ``nriqa-train ... hard_sampling.mix=M`` does both after ``init_from``
 (:func:`nriqa.training.fit.train`); :meth:`nriqa.data.patches.TrainPatches.set_weights` draws by them.
 
     >>> [round(p, 4) for p in sampling_weights(torch.tensor([0.0, 0.1, 0.3]), 0.5).tolist()]
@@ -67,22 +67,27 @@ def check_mix(mix: float) -> float:
     return float(mix)
 
 
-def sampling_weights(errors: Tensor, mix: float) -> Tensor:
-    """Draw probabilities ``(1 - mix) / N + mix * e_i / sum(e)``, ``(N,)`` float64 summing to 1.
+def sampling_weights(errors: Tensor, mix: float, power: float = 1.0) -> Tensor:
+    """Draw probabilities ``(1 - mix) / N + mix * e_i**power / sum(e**power)``, ``(N,)`` float64 summing to 1.
 
-    ``mix = 0`` is uniform; ``mix = 1`` draws only in proportion to the error. Errors that are all zero
-    give uniform draws.
+    ``mix = 0`` is uniform; ``mix = 1`` draws only in proportion to the error (``power`` 1) or its square
+    (``power`` 2: the few images read worst get most of those draws). Errors that are all zero give uniform
+    draws.
 
     Raises:
-        ValueError: ``mix`` outside [0, 1], no errors, or an error that is negative or not finite.
+        ValueError: ``mix`` outside [0, 1], ``power`` not > 0, no errors, or an error that is negative or
+            not finite.
     """
     mix = check_mix(mix)
+    if not float(power) > 0.0:
+        raise ValueError(f"hard_sampling.power must be > 0, got {power}")
     e = torch.as_tensor(errors, dtype=torch.float64).flatten()
     if e.numel() == 0:
         raise ValueError("sampling_weights needs at least one error")
     if not bool(torch.isfinite(e).all()) or bool((e < 0).any()):
         raise ValueError("sampling_weights needs finite, non-negative errors")
     uniform = torch.full_like(e, 1.0 / e.numel())
+    e = e ** float(power)
     total = float(e.sum())
     if total == 0.0:
         return uniform
