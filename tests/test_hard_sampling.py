@@ -143,3 +143,8 @@ def test_train_refuses_a_bad_mix_before_any_work(tmp_path, synthetic_dataset):
     cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "hard_sampling.mix=1.5")
     with pytest.raises(ValueError, match=r"hard_sampling.mix must be in \[0, 1\], got 1.5"):
         train(cfg)
+    cfg = compose_cfg(
+        tmp_path, synthetic_dataset, "experiment=fcnn_fast", "hard_sampling.mix=0.5", "hard_sampling.power=0"
+    )
+    with pytest.raises(ValueError, match="hard_sampling.power must be > 0, got 0"):
+        train(cfg)

@@ -74,9 +74,9 @@ class TrainPatches(Dataset):
 
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
     ``display``) a display transform, then the jitter, each applied to noisy image, twin and reference
-    alike, and the target is computed from the displayed, jittered pair. ``input`` is the noisy patch ``(3,P,P)``, or with
-    ``twins`` the noisy patch and its twin's ``(6,P,P)``. Any ``k >= 0`` is valid; ``len`` is the
-    number of items per epoch.
+    alike, and the target is computed from the displayed, jittered pair. ``input`` is the noisy patch
+    ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``. Any ``k >= 0`` is valid;
+    ``len`` is the number of items per epoch.
     """
 
     def __init__(

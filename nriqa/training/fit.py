@@ -16,7 +16,7 @@ import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
-from nriqa.training.hard_sampling import check_mix, draw_summary, image_errors, sampling_weights
+from nriqa.training.hard_sampling import check_mix, check_power, draw_summary, image_errors, sampling_weights
 from nriqa.training.module import NRIQAModule
 from nriqa.training.warm_start import warm_start
 
@@ -96,7 +96,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
     hard = cfg.get("hard_sampling") or {}
-    mix, power = check_mix(hard.get("mix") or 0.0), float(hard.get("power") or 1.0)
+    # both checked before any work; a power of 0 is refused, not read as the default
+    mix, power = check_mix(hard.get("mix") or 0.0), check_power(hard.get("power", 1.0))
     model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn")))
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))

@@ -25,7 +25,7 @@ from nriqa.data.images import ImagePair
 from nriqa.data.patches import TONEMAP, displayed
 from nriqa.data.targets import compute_target
 
-__all__ = ["check_mix", "draw_summary", "image_errors", "sampling_weights"]
+__all__ = ["check_mix", "check_power", "draw_summary", "image_errors", "sampling_weights"]
 
 
 @torch.no_grad()
@@ -67,6 +67,13 @@ def check_mix(mix: float) -> float:
     return float(mix)
 
 
+def check_power(power: float) -> float:
+    """``power`` as a float; not > 0 a one-line ``ValueError``."""
+    if not float(power) > 0.0:
+        raise ValueError(f"hard_sampling.power must be > 0, got {power}")
+    return float(power)
+
+
 def sampling_weights(errors: Tensor, mix: float, power: float = 1.0) -> Tensor:
     """Draw probabilities ``(1 - mix) / N + mix * e_i**power / sum(e**power)``, ``(N,)`` float64 summing to 1.
 
@@ -78,16 +85,14 @@ def sampling_weights(errors: Tensor, mix: float, power: float = 1.0) -> Tensor:
         ValueError: ``mix`` outside [0, 1], ``power`` not > 0, no errors, or an error that is negative or
             not finite.
     """
-    mix = check_mix(mix)
-    if not float(power) > 0.0:
-        raise ValueError(f"hard_sampling.power must be > 0, got {power}")
+    mix, power = check_mix(mix), check_power(power)
     e = torch.as_tensor(errors, dtype=torch.float64).flatten()
     if e.numel() == 0:
         raise ValueError("sampling_weights needs at least one error")
     if not bool(torch.isfinite(e).all()) or bool((e < 0).any()):
         raise ValueError("sampling_weights needs finite, non-negative errors")
     uniform = torch.full_like(e, 1.0 / e.numel())
-    e = e ** float(power)
+    e = e**power
     total = float(e.sum())
     if total == 0.0:
         return uniform
