@@ -68,7 +68,8 @@ class CrossvalPredictor(ScorerPredictor):
     """A cross-validation run (``nriqa-crossval``) as one predictor.
 
     Each image is scored by the fold that held its scene out, with that fold's ``last.ckpt`` (the
-    end of training, so no checkpoint was chosen by the held-out scene's loss). ``window``: as
+    end of training, so no checkpoint was chosen by the held-out scene's loss; runs made before
+    :mod:`nriqa.training.last_checkpoint` under Lightning >= 2.6 hold a copy of the best one there). ``window``: as
     :class:`nriqa.inference.scorer.Scorer`'s (``None``: what each checkpoint's network states).
     ``run_dir`` may join several runs of one recipe with ``+`` (e.g. two seeds): each scene is then
     scored by the mean of their folds' maps (:class:`nriqa.models.map_mean.MapMean`).

@@ -17,6 +17,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.hard_sampling import check_mix, check_power, draw_summary, image_errors, sampling_weights
+from nriqa.training.last_checkpoint import LastCheckpoint
 from nriqa.training.module import NRIQAModule
 from nriqa.training.warm_start import warm_start
 
@@ -127,7 +128,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
 
     metrics = {k: float(v) for k, v in trainer.callback_metrics.items()}
     ckpt_cb = trainer.checkpoint_callback
-    best = (ckpt_cb.best_model_path or ckpt_cb.last_model_path) if ckpt_cb is not None else ""
+    last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
+    best = (ckpt_cb.best_model_path if ckpt_cb is not None else "") or str(last)
     objects = {
         "cfg": cfg,
         "datamodule": datamodule,
