@@ -55,9 +55,8 @@ def half_copy(src: str | os.PathLike, dst: str | os.PathLike, variants=None, twi
     records, meta = read_manifest(src)
     kept = select(records, None if variants is None else {int(v) for v in variants}, twins)
     if not kept:
-        raise HalfCopyError(
-            f"{src}: no record of variants {sorted(variants)}; see its manifest for the variants it has"
-        )
+        which = "no record" if variants is None else f"no record of variants {sorted(variants)}"
+        raise HalfCopyError(f"{src}: {which}; see its manifest for the variants it has")
     files = sorted({r.path for r in kept} | {r.reference for r in kept})
     size = sum(write_half(src / f, dst / f) for f in files)
     write_manifest(dst, kept, {**meta, "half_copy_of": str(src)})

@@ -8,7 +8,7 @@ from conftest import make_dataset
 
 from data_gen.half_copy import main
 from nriqa.io.exr import read_exr, write_exr
-from nriqa.io.manifest import read_datasets, read_manifest
+from nriqa.io.manifest import read_datasets, read_manifest, write_manifest
 
 
 def test_copy_keeps_the_chosen_records_and_rounds_values_to_half(tmp_path):
@@ -43,3 +43,12 @@ def test_unknown_variant_is_one_line(tmp_path):
     with pytest.raises(SystemExit) as exit_info:
         main([str(src), str(tmp_path / "dst"), "--variants", "7"])
     assert "no record of variants [7]" in str(exit_info.value)
+
+
+def test_an_empty_dataset_is_one_line(tmp_path):
+    src = make_dataset(tmp_path / "src", size=16, scenes=("alpha",), spps=(4,))
+    records, meta = read_manifest(src)
+    write_manifest(src, [], meta)
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(src), str(tmp_path / "dst")])
+    assert "no record;" in str(exit_info.value)
