@@ -15,10 +15,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import OpenEXR
 
-from nriqa.io.atomic import atomic_path
-from nriqa.io.exr import read_exr
+from nriqa.io.exr import read_exr, write_exr
 from nriqa.io.manifest import ManifestError, Record, read_manifest, write_manifest
 
 HALF_MAX = float(np.finfo(np.float16).max)
@@ -43,9 +41,7 @@ def write_half(src: Path, dst: Path) -> int:
     peak = float(np.abs(rgb[finite]).max()) if finite.any() else 0.0
     if peak > HALF_MAX:
         raise HalfCopyError(f"{src}: value {peak:.3g} is beyond half-float range ({HALF_MAX:.0f}); copy it as float32")
-    header = {"compression": OpenEXR.PIZ_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_path(dst) as tmp:
-        OpenEXR.File(header, {"RGB": rgb.astype(np.float16)}).write(str(tmp))
+    write_exr(dst, rgb, half=True)
     return dst.stat().st_size
 
 

@@ -36,14 +36,19 @@ class ImageReadError(NriqaError):
     """An image file that cannot be interpreted; the message says which file and why."""
 
 
-def write_exr(path: str | os.PathLike, rgb: np.ndarray) -> None:
-    """Write an ``(H, W, 3)`` image as a float32 ZIP-compressed scanline EXR, atomically."""
+def write_exr(path: str | os.PathLike, rgb: np.ndarray, half: bool = False) -> None:
+    """Write an ``(H, W, 3)`` image as a float32 ZIP-compressed scanline EXR, atomically.
+
+    ``half``: half floats, PIZ-compressed (smaller for noisy images); the caller checks the range.
+    """
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"write_exr expects an (H, W, 3) array, got shape {rgb.shape} for {path}")
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    compression = OpenEXR.PIZ_COMPRESSION if half else OpenEXR.ZIP_COMPRESSION
+    header = {"compression": compression, "type": OpenEXR.scanlineimage}
+    pixels = np.ascontiguousarray(rgb, dtype=np.float16 if half else np.float32)
     with atomic_path(path) as tmp:
-        OpenEXR.File(header, {"RGB": np.ascontiguousarray(rgb, dtype=np.float32)}).write(str(tmp))
+        OpenEXR.File(header, {"RGB": pixels}).write(str(tmp))
 
 
 @contextlib.contextmanager
