@@ -11,7 +11,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
 from nriqa.data.folds import only_scenes, split_by_scene
-from nriqa.data.images import ImagePair, load_pairs
+from nriqa.data.images import ImagePair, load_pairs, pairs_to
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
 from nriqa.data.targets import check_target
 from nriqa.io.manifest import read_datasets
@@ -60,6 +60,11 @@ class NRIQADataModule(L.LightningDataModule):
             two-buffer scorer; the target stays the noisy image's quality.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
+        device: where training patches are made. ``None``: on the CPU, in the loader (and its
+            workers). ``"cuda"`` (any torch device): the training images are moved there once and
+            each batch is cut, displayed, jittered and scored there, so an accelerator is not left
+            waiting on CPU patch preparation; needs ``num_workers=0`` and ``pin_memory=False``.
+            The patches are the same draws as on the CPU (the random choices stay on the CPU).
     """
 
     def __init__(
@@ -78,9 +83,12 @@ class NRIQADataModule(L.LightningDataModule):
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
+        device: str | None = None,
     ) -> None:
         super().__init__()
         check_target(target)
+        if device is not None and (num_workers or pin_memory):
+            raise ValueError(f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false")
         jitter = dict(jitter or {})
         unknown = set(jitter) - {"hsv", "geometric"}
         if unknown:
@@ -105,6 +113,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.seed = seed
         self.num_workers = num_workers
         self.pin_memory = pin_memory
+        self.device = None if device is None else str(device)
         self.train_pairs: list[ImagePair] = []
         self.val_pairs: list[ImagePair] = []
         self.train_set: TrainPatches | None = None
@@ -121,7 +130,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.train_pairs = load_pairs(train, linear=self.display is not None, twins=self.twins)
         self.val_pairs = load_pairs(val, twins=self.twins)
         self.train_set = TrainPatches(
-            self.train_pairs,
+            self.train_pairs if self.device is None else pairs_to(self.train_pairs, self.device),
             self.patch_size,
             self.target,
             self.batches_per_epoch * self.batch_size,

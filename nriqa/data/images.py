@@ -79,3 +79,17 @@ def load_pairs(records: list[Record], linear: bool = False, twins: bool = False)
         twin = images[twin_of[rec.path]] if twins else None
         pairs.append(ImagePair(rec, noisy, ref, twin, linear, keys.get(rec.reference, 1.0)))
     return pairs
+
+
+def pairs_to(pairs: list[ImagePair], device: str | torch.device) -> list[ImagePair]:
+    """The same pairs with their images on ``device``; a reference shared by many pairs is moved once."""
+    moved: dict[int, Tensor] = {}
+
+    def to(t: Tensor | None) -> Tensor | None:
+        if t is None:
+            return None
+        if id(t) not in moved:
+            moved[id(t)] = t.to(device)
+        return moved[id(t)]
+
+    return [dataclasses.replace(p, noisy=to(p.noisy), ref=to(p.ref), twin=to(p.twin)) for p in pairs]

@@ -96,16 +96,35 @@ def apply_jitter(img: Tensor, p: JitterParams) -> Tensor:
         raise ValueError(f"apply_jitter expects (3, H, W) or (B, 3, H, W) RGB, got {tuple(img.shape)}")
     out = img
     if p.has_hsv:
-        h, s, v = rgb_to_hsv(img.clamp(0.0, 1.0)).unbind(dim=-3)
-        h = torch.remainder(h + 2.0 * math.pi * p.hue_shift, 2.0 * math.pi)
-        s = (s + p.sat_shift).clamp(0.0, 1.0)
-        v = (v + p.val_shift).clamp(0.0, 1.0)
-        out = hsv_to_rgb(torch.stack((h, s, v), dim=-3)).clamp(0.0, 1.0)
+        out = shift_hsv(img, p.hue_shift, p.sat_shift, p.val_shift)
     if p.flip:
         out = out.flip(-1)
     if p.rot_k % 4:
         out = torch.rot90(out, p.rot_k % 4, dims=(-2, -1))
     return out
+
+
+def shift_hsv(img: Tensor, hue: float | Tensor, sat: float | Tensor, val: float | Tensor) -> Tensor:
+    """The colour part of the jitter (eq. 5.1): shift hue (in turns, wrapped), saturation and value (clipped).
+
+    Args:
+        img: ``(..., 3, H, W)`` RGB in [0, 1].
+        hue, sat, val: the shifts, numbers or tensors that broadcast against ``(..., H, W)`` (one per
+            image of a batch: shape ``(B, 1, 1)``); a tensor hue is turned into radians in its own
+            dtype (give float64 for the same result as a Python number), then moved to the image's
+            device and dtype.
+
+    Returns:
+        RGB of the same shape and dtype, in [0, 1].
+    """
+    h, s, v = rgb_to_hsv(img.clamp(0.0, 1.0)).unbind(dim=-3)
+    angle = 2.0 * math.pi * hue
+    if isinstance(angle, Tensor):
+        angle = angle.to(device=h.device, dtype=h.dtype)
+    h = torch.remainder(h + angle, 2.0 * math.pi)
+    s = (s + sat).clamp(0.0, 1.0)
+    v = (v + val).clamp(0.0, 1.0)
+    return hsv_to_rgb(torch.stack((h, s, v), dim=-3)).clamp(0.0, 1.0)
 
 
 def jitter_pair(

@@ -7,6 +7,8 @@ epoch (and distinct per DDP rank), so runs are reproducible whatever the number 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import torch
 import torch.distributed as dist
@@ -15,7 +17,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.images import ImagePair
-from nriqa.data.jitter import apply_jitter, sample_jitter
+from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
 from nriqa.data.targets import check_target, compute_target
 
 # The display renders go through at inference (EXR input): the package tone map.
@@ -134,18 +136,101 @@ class TrainPatches(Dataset):
         u = torch.rand(1, generator=g, dtype=torch.float64)
         return self.pairs[min(int(torch.searchsorted(self.cdf, u, right=True)), len(self.pairs) - 1)]
 
-    def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
+    def draw(self, index: int) -> Draw:
+        """The random choices of item ``index``: image, position, display and jitter, from ``(seed, index)``."""
         g = item_generator(self.seed, index)
         pair = self.pick(g)
-        members = cut_all(pair, g, self.patch_size, self.twins)
+        h, w = pair.noisy.shape[-2:]
+        y = int(torch.randint(0, h - self.patch_size + 1, (1,), generator=g))
+        x = int(torch.randint(0, w - self.patch_size + 1, (1,), generator=g))
         display = self.display.sample(g) if self.display is not None else TONEMAP
-        members = displayed(pair, members, display)
-        if self.hsv or self.geometric:
-            params = sample_jitter(g, hsv=self.hsv, geometric=self.geometric)
-            members = [apply_jitter(m, params) for m in members]
+        jitter = sample_jitter(g, hsv=self.hsv, geometric=self.geometric) if self.hsv or self.geometric else None
+        return Draw(pair, y, x, display, jitter)
+
+    def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
+        return self.__getitems__([index])[0]
+
+    def __getitems__(self, indices: list[int]) -> list[tuple[Tensor, Tensor]]:
+        """Items ``indices`` made together: each drawn alone, then cut, displayed, jittered and scored as one batch.
+
+        The DataLoader calls this with a batch's indices; the result equals ``[self[k] for k in indices]``
+        (the draws are the same, only the arithmetic is batched), at a fraction of the per-item cost.
+        """
+        draws = [self.draw(int(k)) for k in indices]
+        size = self.patch_size
+        sources = [[d.pair.noisy, d.pair.ref] + ([d.pair.twin] if self.twins else []) for d in draws]
+        members = [
+            torch.stack([src[j][:, d.y : d.y + size, d.x : d.x + size] for src, d in zip(sources, draws)])
+            for j in range(len(sources[0]))
+        ]
+        members = display_batch(draws, members)
+        members = jitter_batch(draws, members)
         noisy, ref = members[0], members[1]
-        target = compute_target(self.target, noisy[None], ref[None])[0]
-        return network_input(noisy, members[2] if self.twins else None).contiguous(), target
+        target = compute_target(self.target, noisy, ref)
+        inputs = network_input(noisy, members[2] if self.twins else None)
+        return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
+
+
+@dataclasses.dataclass(frozen=True)
+class Draw:
+    """The random choices of one training item (:meth:`TrainPatches.draw`)."""
+
+    pair: ImagePair
+    y: int
+    x: int
+    display: Display
+    jitter: JitterParams | None
+
+
+def display_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
+    """Each item of the ``(B, 3, P, P)`` member stacks through its own display, batched by curve and bits.
+
+    Tone-mapped pairs pass through unchanged (only the tone map is allowed for them). For linear
+    pairs, items that share a curve and quantisation go through :func:`apply_display` together, each
+    with its own exposure ``key * 2 ** stops``, the same for every member of an item.
+    """
+    if not all(d.pair.linear for d in draws):
+        if any(d.display != TONEMAP for d in draws):
+            raise ValueError("display transforms need linear image pairs; load them with linear=True")
+        return members
+    out = [torch.empty_like(m) for m in members]
+    groups: dict[tuple[str, int | None], list[int]] = {}
+    for i, d in enumerate(draws):
+        groups.setdefault((d.display.curve, d.display.bits), []).append(i)
+    for (curve, bits), rows in groups.items():
+        scale = [draws[i].pair.key * 2.0 ** draws[i].display.stops for i in rows]
+        scale = torch.tensor(scale, dtype=members[0].dtype, device=members[0].device).view(-1, 1, 1, 1)
+        for m, o in zip(members, out):
+            o[rows] = apply_display(m[rows], Display(curve, 0.0, bits), scale)
+    return out
+
+
+def jitter_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
+    """Each item's jitter (:func:`nriqa.data.jitter.apply_jitter`) on the member stacks: colour batched, then flip/turns."""
+    params = [d.jitter for d in draws]
+    if all(p is None for p in params):
+        return members
+    colour = [i for i, p in enumerate(params) if p is not None and p.has_hsv]
+    if colour:
+        shifts = torch.tensor(
+            [[params[i].hue_shift, params[i].sat_shift, params[i].val_shift] for i in colour], dtype=torch.float64
+        ).view(-1, 3, 1, 1)
+        hue, sat, val = shifts[:, 0], shifts[:, 1].to(members[0]), shifts[:, 2].to(members[0])
+        members = [m.clone() for m in members]
+        for m in members:
+            m[colour] = shift_hsv(m[colour], hue, sat, val)
+    out = []
+    for m in members:
+        items = []
+        for i, p in enumerate(params):
+            item = m[i]
+            if p is not None and p.flip:
+                item = item.flip(-1)
+            if p is not None and p.rot_k % 4:
+                item = torch.rot90(item, p.rot_k % 4, dims=(-2, -1))
+            items.append(item)
+        out.append(torch.stack(items))
+    return out
 
 
 class EpochSampler(Sampler[int]):
