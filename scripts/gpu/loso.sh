@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Leave-one-scene-out of a from-scratch recipe on a lent GPU machine: one nriqa-crossval process per scene
+# family, PARALLEL at a time, each fold cut at FOLD_TIME; then every scene scored by its own fold's last
+# checkpoint (nriqa-evaluate --crossval) and the results packed for the trip back. Run from the repository
+# root there, with the dataset carried or rendered (scripts/gpu/render_train.sh without runs renders one):
+#
+#   OUT=$OUT DATA=data/slice scripts/gpu/loso.sh
+#
+# Settings (environment):
+#   DATA=data/loso2629 (a dataset root: manifest.json)  OUT=/tmp/out  WORK=/tmp/loso (fold runs)
+#   EXPERIMENT=unet_fast  EPOCHS=60 (x 200 batches of 8 patches of 64x64: stop 24's 12000-step recipe)
+#   SEED=12345  FOLD_TIME=00:00:06:00 (Lightning max_time per fold)  PARALLEL=17 (folds at once)
+#   TRAINER=gpu  DEVICE=cuda (data.device: patches made on the GPU; empty: on the CPU, one core per fold)
+#   SCENES= (space-separated families; default every family of DATA)  EXTRA= (more overrides for every fold)
+#   SITE= (a tarball of scripts/gpu/pack_site.sh to unpack)  WHEELS= (a folder of wheels to install instead)
+#   PY=python3
+# Writes OUT/loso.log (machine, per-fold lines, the evaluation's tables), OUT/eval/ (nriqa-evaluate's tables)
+# and OUT/loso_runs.tgz (each fold's last checkpoint without optimiser state, its logs and result.json).
+set -u
+T0=$(date +%s)
+el() { echo $(($(date +%s) - T0)); }
+OUT=${OUT:-/tmp/out}
+W=${WORK:-/tmp/loso}
+DATA=${DATA:-data/loso2629}
+PY=${PY:-python3}
+mkdir -p "$OUT"
+exec > >(tee -a "$OUT/loso.log") 2>&1
+export PYTHONUNBUFFERED=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PROJECT_ROOT=$PWD
+if [ -n "${SITE:-}" ]; then
+  tar -xJf "$SITE" -C /tmp && export PYTHONPATH=/tmp/site312:$PWD || { echo "cannot unpack $SITE"; exit 2; }
+elif [ -n "${WHEELS:-}" ]; then
+  "$PY" -m pip install -q --no-index --no-deps --no-compile --target /tmp/site "$WHEELS"/*.whl &&
+    export PYTHONPATH=/tmp/site:$PWD || { echo "cannot install the wheels of $WHEELS"; exit 2; }
+else
+  export PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH}
+fi
+[ -f "$DATA/manifest.json" ] || { echo "no dataset at $DATA (manifest.json missing): carry one or render it first"; exit 2; }
+echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(nproc --all) cores"
+"$PY" -c "import torch, lightning, hydra, OpenEXR, kornia; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" ||
+  { echo "the packages are missing: give SITE or WHEELS"; exit 2; }
+SCENES=${SCENES:-$("$PY" -c "import json, sys; print(*sorted({r['scene'] for r in json.load(open(sys.argv[1]))['records']}))" "$DATA/manifest.json")}
+rm -rf "$W" && mkdir -p "$W/all/folds" "$W/logs"
+DEV=${DEVICE-cuda}
+echo "[$(el)] folds: $SCENES; ${PARALLEL:-all} at a time"
+fold() { # SCENE
+  # shellcheck disable=SC2086  # EXTRA is a list of overrides
+  "$PY" -m nriqa.cli.crossval experiment="${EXPERIMENT:-unet_fast}" trainer="${TRAINER:-gpu}" "paths.data_dir=[$DATA]" \
+    data.patch_size=64 data.batch_size=8 schedule.map.epochs="${EPOCHS:-60}" seed="${SEED:-12345}" \
+    ${DEV:+data.device=$DEV} "crossval.scenes=[$1]" crossval.out_dir="$W/cv/$1" trainer.enable_progress_bar=false \
+    +trainer.max_time="${FOLD_TIME:-00:00:06:00}" ${EXTRA:-} >"$W/logs/fold_$1.txt" 2>&1
+  local rc=$?
+  echo "[$(el)] fold $1 rc=$rc $(grep -h "fold $1:" "$W/logs/fold_$1.txt" | tail -1)"
+}
+pids=()  # a bare `wait` would also wait for the tee above
+for s in $SCENES; do
+  fold "$s" &
+  pids+=($!)
+  if [ -n "${PARALLEL:-}" ] && [ ${#pids[@]} -ge "$PARALLEL" ]; then wait "${pids[@]}"; pids=(); fi
+done
+[ ${#pids[@]} -eq 0 ] || wait "${pids[@]}"
+for s in $SCENES; do
+  if [ -d "$W/cv/$s/folds/$s" ]; then ln -s "$W/cv/$s/folds/$s" "$W/all/folds/$s"; else echo "fold $s left no run"; tail -3 "$W/logs/fold_$s.txt"; fi
+done
+echo "[$(el)] folds done"
+# shellcheck disable=SC2086  # SCENES is a list
+"$PY" -m nriqa.evaluate "$DATA" --out "$OUT/eval" --crossval "$W/all" --window 64 --baselines none --no-figures \
+  --scenes $SCENES >"$W/logs/eval.txt" 2>&1
+rc=$?
+echo "[$(el)] evaluate rc=$rc"
+cat "$OUT/eval/comparison.md" 2>/dev/null || tail -5 "$W/logs/eval.txt"
+"$PY" - "$W" <<'P'
+import pathlib, sys, torch
+for p in pathlib.Path(sys.argv[1]).glob("cv/*/folds/*/checkpoints/*.ckpt"):
+    if p.name != "last.ckpt":
+        p.unlink()
+        continue
+    c = torch.load(p, map_location="cpu", weights_only=True)
+    torch.save({k: c[k] for k in ("state_dict", "hyper_parameters", "epoch", "global_step", "pytorch-lightning_version") if k in c}, p)
+P
+tar -C "$W" --exclude='*/tensorboard/*' -czf "$OUT/loso_runs.tgz" cv logs
+echo "[$(el)] packed $(du -h "$OUT/loso_runs.tgz" | cut -f1)"
