@@ -136,3 +136,16 @@ def test_train_step_benchmark_bad_data_is_one_line(tmp_path, one_thread):
     module = load_train_step()
     with pytest.raises(SystemExit, match="train_step: .*manifest"):
         module.main(["--data", str(tmp_path), "--repeats", "1"])
+
+
+def test_a_batch_mixing_linear_and_tone_mapped_pairs_is_refused(synthetic_dataset):
+    import dataclasses
+
+    from nriqa.data.patches import TrainPatches
+
+    linear = make_dm(synthetic_dataset, display=MIX).train_set.pairs
+    tone_mapped = make_dm(synthetic_dataset).train_set.pairs
+    mixed = [linear[0], dataclasses.replace(tone_mapped[1])]
+    ds = TrainPatches(mixed, 32, "ssim_map", 8, seed=1, display=None)
+    with pytest.raises(ValueError, match="mix tone-mapped and linear"):
+        ds.__getitems__(list(range(8)))

@@ -189,10 +189,13 @@ def display_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
     pairs, items that share a curve and quantisation go through :func:`apply_display` together, each
     with its own exposure ``key * 2 ** stops``, the same for every member of an item.
     """
-    if not all(d.pair.linear for d in draws):
+    linear = [d.pair.linear for d in draws]
+    if not any(linear):
         if any(d.display != TONEMAP for d in draws):
             raise ValueError("display transforms need linear image pairs; load them with linear=True")
         return members
+    if not all(linear):
+        raise ValueError("training pairs mix tone-mapped and linear images; load them all alike (linear=True or not)")
     out = [torch.empty_like(m) for m in members]
     groups: dict[tuple[str, int | None], list[int]] = {}
     for i, d in enumerate(draws):
