@@ -54,6 +54,7 @@ def main(cfg: DictConfig) -> None:
         jobs = plan_dataset(
             scenes=list(cfg.scenes),
             variants=int(cfg.variants),
+            first_variant=int(cfg.first_variant),
             seed=int(cfg.seed),
             resolution=None if cfg.resolution is None else tuple(cfg.resolution),
             ladder_top=cfg.ladder_top,

@@ -75,6 +75,7 @@ def plan_dataset(
     ladder_top: int | None = None,
     reference_factor: int = MIN_REFERENCE_FACTOR,
     algorithms: list[str] | None = None,
+    first_variant: int = 0,
 ) -> list[Job]:
     """All jobs of a dataset, variant by variant, longest first within a variant. ``None`` options
     take each scene's own declaration.
@@ -83,10 +84,17 @@ def plan_dataset(
     ``variants=K`` and the first ``K`` (the same images, seeds do not depend on ``variants``) are a
     complete dataset with a manifest.
 
-    ``algorithms`` restricts every scene to those of its own algorithms named there.
+    ``algorithms`` restricts every scene to those of its own algorithms named there. ``first_variant``
+    skips the variants below it: ``first_variant=46, variants=48`` plans variants 46 and 47 alone, the
+    same images a full run would render for them (a fresh test set beside a training set).
     """
     if variants < 1:
         raise PlanError(f"variants={variants}: need at least 1 variant per scene")
+    if not 0 <= first_variant < variants:
+        raise PlanError(
+            f"first_variant={first_variant} with variants={variants}: "
+            "need 0 <= first_variant < variants (variants counts from variant 0)"
+        )
     if reference_factor < MIN_REFERENCE_FACTOR:
         raise PlanError(
             f"reference_factor={reference_factor}: the reference needs >= {MIN_REFERENCE_FACTOR}x the ladder's top spp"
@@ -109,7 +117,7 @@ def plan_dataset(
         res = tuple(resolution) if resolution is not None else spec.resolution
         rungs = ladder(ladder_top or spec.ladder_top)
         chosen = [a for a in spec.algorithms if algorithms is None or a in algorithms]
-        for v in range(variants):
+        for v in range(first_variant, variants):
             base = f"{name}/v{v:03d}"
             ref = f"{base}/reference.exr"
             vseed = derive_seed(seed, name, v)

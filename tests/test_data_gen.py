@@ -64,6 +64,15 @@ def test_plan_ladder_twins_and_seeds():
     )
 
 
+def test_first_variant_plans_the_same_images_a_full_run_gives_those_variants():
+    full = plan_dataset(["cornell", "dim_interior"], variants=4, seed=3, resolution=(16, 16), ladder_top=8)
+    tail = plan_dataset(
+        ["cornell", "dim_interior"], variants=4, seed=3, resolution=(16, 16), ladder_top=8, first_variant=2
+    )
+    assert {j.variant for j in tail} == {2, 3}
+    assert sorted(tail, key=repr) == sorted([j for j in full if j.variant >= 2], key=repr)
+
+
 def test_square_samplers_take_only_powers_of_four():
     jobs = plan_dataset(["cornell"], variants=1, ladder_top=64)
     spps = {j.algorithm: sorted({t.spp for t in j.tasks}) for j in jobs}
@@ -80,6 +89,8 @@ def test_square_samplers_take_only_powers_of_four():
         ({"ladder_top": 1}, "not a power of two"),
         ({"reference_factor": 8}, ">= 16x"),
         ({"variants": 0}, "at least 1 variant"),
+        ({"variants": 2, "first_variant": 2}, "0 <= first_variant < variants"),
+        ({"first_variant": -1}, "0 <= first_variant < variants"),
         ({"algorithms": ["path_magic"]}, "unknown algorithm"),
     ],
 )
@@ -103,6 +114,7 @@ def test_ladder():
         ("scenes=[nowhere]", "unknown scene"),
         ("ladder_top=12", "not a power of two"),
         ("reference_factor=4", ">= 16x"),
+        ("first_variant=1", "first_variant=1 with variants=1"),
     ],
 )
 def test_cli_bad_configuration_is_one_line(tmp_path, override, message):
