@@ -25,7 +25,8 @@ Writes ``comparison.{csv,md}`` (rows = predictors), ``per_scene.{csv,md}``, ``im
 ``monotone.{csv,md}`` (whether SSIM-scale predictions rise with spp, :mod:`nriqa.eval.monotone`),
 ``by_spp.{csv,md}`` (MAE and bias per band of spp, :mod:`nriqa.eval.by_spp`),
 ``scatter.png`` and ``maps_<predictor>_<scene>.png`` (noisy | predicted | true | reference)
-(:mod:`nriqa.eval.plots`).
+(:mod:`nriqa.eval.plots`); with ``--base NAME``, ``paired.{csv,md}``: every other predictor's MAE
+against that one's on the same images, with a cluster-bootstrap interval (:mod:`nriqa.eval.paired`).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from nriqa.eval.by_spp import COLUMNS as SPP_COLUMNS
 from nriqa.eval.by_spp import by_spp
 from nriqa.eval.dataset import Dataset, EvaluationError, load_dataset, records_of
 from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
+from nriqa.eval.paired import paired_table, write_paired
 from nriqa.eval.plots import figure_items, plot_maps, plot_scatter
 from nriqa.eval.predictors import build_predictors
 from nriqa.io.atomic import write_text_atomic
@@ -280,12 +282,19 @@ def evaluate(
     reference: str = DEFAULT_REFERENCE,
     figures: bool = True,
     display: Display | None = None,
+    base: str | None = None,
 ) -> tuple[list[dict], list[dict]]:
     """Run the whole evaluation and write its tables and figures into ``out``; returns ``(comparison, per_scene)``.
 
     ``display``: show linear renders through it (:mod:`nriqa.eval.dataset`); ``None`` or the plain
-    tone map load images as prediction does.
+    tone map load images as prediction does. ``base``: the name of one of ``predictors``; every
+    other is compared with it image by image (``paired.{csv,md}``).
     """
+    names = [p.name for p in predictors]
+    if base is not None and base not in names:
+        raise EvaluationError(f"--base {base}: not one of the predictors ({', '.join(names)}); name one of them")
+    if base is not None and len(names) < 2:
+        raise EvaluationError(f"--base {base}: nothing to compare it with; add another --model or --checkpoint")
     display = None if display == Display() else display
     root, records = records_of(data_dir, pattern, reference)
     data = load_dataset(root, records, algorithms, display=display)
@@ -300,6 +309,8 @@ def evaluate(
     ssim_names = [p.name for p in predictors if p.scale == "ssim"]
     monotone = monotonicity(rows, ssim_names) if ssim_names else None
     _write_tables(Path(out), root, rows, comparison, per_scene, n_images, eval_scenes, monotone, display)
+    if base is not None:
+        write_paired(Path(out), paired_table(rows, base, names))
     if figures:
         _write_figures(Path(out), data, rows, maps, predictors, eval_scenes)
     return comparison, per_scene
@@ -350,6 +361,11 @@ def _parser() -> argparse.ArgumentParser:
         "scoring and measuring: CURVE[+-STOPS][:BITS], CURVE tonemap|srgb|gamma22, stops from the "
         "reference's key exposure, e.g. srgb, srgb+2, gamma22-1:8 (default: the package tone map)",
     )
+    parser.add_argument(
+        "--base",
+        default=None,
+        help="a predictor's name (e.g. unet_fast): compare every other with it image by image, paired.{csv,md}",
+    )
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     parser.add_argument(
         "--threads",
@@ -378,6 +394,7 @@ def main(argv: list[str] | None = None) -> None:
             args.reference,
             not args.no_figures,
             display,
+            args.base,
         )
     except (EvaluationError, ExternalError, ManifestError, ImageReadError, CheckpointError) as exc:
         sys.exit(f"error: {exc}")
