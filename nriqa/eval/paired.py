@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nriqa.errors import NriqaError
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table, write_csv
 
@@ -33,7 +34,7 @@ LEVEL = 0.95
 COLUMNS = ["predictor", "base", "n", "clusters", "mae", "base_mae", "diff", "low", "high", "better"]
 
 
-class PairedError(ValueError):
+class PairedError(NriqaError):
     """Rows that cannot be paired: a predictor missing, no image scored by both."""
 
 
