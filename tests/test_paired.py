@@ -83,7 +83,7 @@ def test_bad_requests_are_one_line(kwargs, message):
         paired_difference(**args)
 
 
-def test_cli_rereads_an_images_csv(tmp_path, capsys):
+def test_cli_rereads_an_images_csv(tmp_path):
     rows = _rows({"base": 0.03, "cand": 0.01, "other": 0.05})
     path = tmp_path / "images.csv"
     with path.open("w", newline="") as f:
