@@ -10,7 +10,8 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
 
 1. **throughput** -- Mpix/s of :class:`nriqa.inference.scorer.Scorer` (tone map + forward + pooling) for
    every registered model (or ``--models``) on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
-   on a ``patch-size`` square (its cost grows with 1/stride^2). Time only: untrained weights (``--shipped``:
+   on a ``patch-size`` square (its cost grows with 1/stride^2); a model read in windows (``unet_fast``) side by
+   side and with ``overlap`` (blended windows at half-window steps). Time only: untrained weights (``--shipped``:
    the shipped ones). ``--unfolded`` also times each map model's network as trained, batch norm not folded
    into its convolutions (:mod:`nriqa.inference.folding`), alternating with the Scorer as it runs.
 2. **memory** -- peak resident memory of scoring a 4096x4096 HDR image with ``fcnn_fast``, tiled
@@ -101,14 +102,16 @@ def throughput(args) -> str:
         if args.unfolded and scorer.output == "map":
             rows.append(_against_unfolded(name, scorer, net, img, twin, args.repeats))
             continue
-        strides = (1, 4, 8, 16) if scorer.output == "patch" else (None,)
+        # the patch model at several strides; a model read in windows side by side and overlapping (blended)
+        strides = (1, 4, 8, 16) if scorer.output == "patch" else ("-", "overlap") if scorer.window else ("-",)
         for stride in strides:
-            if stride is not None:
+            if isinstance(stride, int):
                 scorer.stride = stride
+            scorer.overlap = stride == "overlap"
             t = timed(lambda s=scorer, x=img, y=twin: s(x, hdr=True, twin=y), args.repeats if stride != 1 else 1)
-            rows.append([name, size, stride or "-", f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
+            rows.append([name, size, stride, f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
             print(f"  throughput {name} stride={stride}: {t:.3f} s", file=sys.stderr)
-    return markdown_table(rows, ["model", "side (px)", "stride", "ms / image", "Mpix/s"])
+    return markdown_table(rows, ["model", "side (px)", "stride / windows", "ms / image", "Mpix/s"])
 
 
 def _against_unfolded(name: str, scorer: Scorer, net: torch.nn.Module, img, twin, repeats: int) -> list:

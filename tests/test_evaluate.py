@@ -257,6 +257,28 @@ def test_window_reaches_the_folds_and_checkpoints(data, tmp_path):
     assert got != pytest.approx(next(r["predicted"] for r in whole if r["id"] == item.record.id), abs=1e-6)
 
 
+def test_overlap_adds_a_blended_row_for_each_windowed_scorer(data, tmp_path):
+    """``--overlap``: a windowed checkpoint is scored twice (side by side, then blended, ``NAME-overlap``);
+    a model not read in windows gets no second row."""
+    from nriqa.eval.predictors import build_predictors
+    from nriqa.inference.scorer import Scorer
+    from nriqa.models import create_model
+
+    torch.manual_seed(0)
+    spec = {"name": "unet_fast", "width": 8, "depth": 1, "window": 32}
+    net = create_model(**spec).eval()
+    windowed = _save_checkpoint(tmp_path / "u" / "checkpoints" / "last.ckpt", net, spec)
+    plain = _save_checkpoint(tmp_path / "f" / "checkpoints" / "last.ckpt", create_model("fcnn_fast").eval())
+    predictors = build_predictors([], [str(windowed), str(plain)], "none", overlap=True)
+    assert [p.name for p in predictors] == ["u/last", "f/last", "u/last-overlap"]
+    assert not predictors[0].scorer.overlap and predictors[2].scorer.overlap
+    rows, _, _ = run_predictors(data, predictors, ["alpha"])
+    item = next(it for it in data.items if it.record.scene == "alpha")
+    got = {r["predictor"]: r["predicted"] for r in rows if r["id"] == item.record.id}
+    assert got["u/last-overlap"] == pytest.approx(Scorer(net, overlap=True)(item.ldr, hdr=False).score, abs=1e-6)
+    assert got["u/last-overlap"] != pytest.approx(got["u/last"], abs=1e-6)
+
+
 def test_checkpoints_joined_with_plus_score_with_the_mean_of_their_maps(data, tmp_path):
     from nriqa.eval.predictors import build_predictors
     from nriqa.inference.scorer import Scorer

@@ -296,3 +296,19 @@ def test_cli_twin_of_another_size_is_one_line(tmp_path, twin_weights):
     assert proc.returncode == 1 and proc.stdout == ""
     (line,) = proc.stderr.strip().splitlines()
     assert "a.exr" in line and "same size" in line
+
+
+def test_cli_overlap_reads_the_default_in_blended_windows(tmp_path, capsys):
+    """``--overlap`` scores with ``Scorer(overlap=True)``: the map the API gives, unlike the side-by-side one."""
+    from nriqa.inference.scorer import Scorer
+
+    image = rgb(96, 80, scale=1.0, seed=2)
+    write_exr(tmp_path / "a.exr", image)
+    args = [str(tmp_path / "a.exr"), "--no-figures", "--threads", "1", "--out"]
+    assert predict.main([*args, str(tmp_path / "side")]) == 0
+    assert predict.main([*args, str(tmp_path / "blend"), "--overlap"]) == 0
+    side = read_exr(tmp_path / "side" / "a_map.exr")[..., 0]
+    blend = read_exr(tmp_path / "blend" / "a_map.exr")[..., 0]
+    expected = Scorer.from_pretrained(overlap=True)(image, hdr=True).map
+    np.testing.assert_allclose(blend, expected, atol=1e-6)
+    assert np.abs(blend - side).max() > 1e-3

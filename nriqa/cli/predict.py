@@ -101,6 +101,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--tile", type=int, default=512, help="tile side for large images (0: never tile)")
     ap.add_argument("--stride", type=int, default=8, help="window stride of the patch model")
     ap.add_argument(
+        "--overlap",
+        action="store_true",
+        help="a model read in 64x64 windows (unet_fast): blend windows read every half window, so the map has "
+        "no seams on the window grid (about 4x slower on large images)",
+    )
+    ap.add_argument(
         "--threads",
         type=int,
         default=None,
@@ -207,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     try:
-        opts = {"tile": args.tile, "stride": args.stride}
+        opts = {"tile": args.tile, "stride": args.stride, "overlap": args.overlap}
         if args.checkpoint is not None:
             scorer = Scorer.from_checkpoint(args.checkpoint, **opts)
         else:

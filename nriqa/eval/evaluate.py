@@ -342,6 +342,12 @@ def _parser() -> argparse.ArgumentParser:
         "side (0: whole), as shipped unet_fast does with 64 (default: what each checkpoint states)",
     )
     parser.add_argument(
+        "--overlap",
+        action="store_true",
+        help="also score every shipped model and checkpoint read in windows (unet_fast) with overlapping, blended "
+        "windows, as a row NAME-overlap (Scorer(overlap=True))",
+    )
+    parser.add_argument(
         "--baselines", default="all", help=f"'all', 'none' or a comma list of {', '.join(baseline_names())}"
     )
     parser.add_argument("--scenes", nargs="+", help="evaluate only these scenes (e.g. the held-out scene of a fold)")
@@ -383,7 +389,9 @@ def main(argv: list[str] | None = None) -> None:
     torch.set_num_threads(max(1, args.threads))
     try:
         display = Display.parse(args.display) if args.display is not None else None
-        predictors = build_predictors(args.model, args.checkpoint, args.baselines, args.crossval, args.window)
+        predictors = build_predictors(
+            args.model, args.checkpoint, args.baselines, args.crossval, args.window, args.overlap
+        )
         comparison, _ = evaluate(
             args.data,
             args.out,

@@ -7,6 +7,7 @@ command line's ``--model``, ``--checkpoint``, ``--crossval`` and ``--baselines``
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 
@@ -98,6 +99,13 @@ class CrossvalPredictor(ScorerPredictor):
         return self.scorers[scene]
 
 
+def blended(scorer):
+    """A copy of ``scorer`` that reads its windows overlapping and blended (the same network)."""
+    twin = copy.copy(scorer)
+    twin.overlap = True
+    return twin
+
+
 def checkpoint_names(paths: list[str]) -> list[str]:
     """Short distinct row labels for checkpoints: the fewest trailing path parts that tell them apart.
 
@@ -126,6 +134,7 @@ def build_predictors(
     baselines: str,
     crossval: list[str] = (),
     window: int | None = None,
+    overlap: bool = False,
 ) -> list[Predictor]:
     """Learned scorers (cross-validation runs, shipped ``models``, ``checkpoints``) then the baselines.
 
@@ -133,6 +142,8 @@ def build_predictors(
     ``window`` applies to checkpoints and cross-validation folds (``None``: what their networks
     state); shipped weights keep the window their spec states. A checkpoint may join several with
     ``+`` (runs of one recipe with different seeds): it is then scored by the mean of their maps.
+    ``overlap``: every shipped model and checkpoint read in windows is scored a second time with
+    overlapping, blended windows (``Scorer(overlap=True)``), as a row named ``NAME-overlap``.
 
     Raises:
         EvaluationError: nothing to evaluate, or two predictors with the same name.
@@ -149,6 +160,12 @@ def build_predictors(
         for parts in joined:
             name = "+".join(short[p] for p in parts)
             predictors.append(ScorerPredictor(name, checkpoints_scorer(parts, window)))
+        if overlap:
+            predictors += [
+                ScorerPredictor(f"{p.name}-overlap", blended(p.scorer))
+                for p in list(predictors)
+                if not isinstance(p, CrossvalPredictor) and p.scorer.window
+            ]
     predictors += [create_baseline(n) for n in _baseline_list(baselines)]
     if not predictors:
         raise EvaluationError("nothing to evaluate: give --model, --checkpoint or --baselines")

@@ -64,6 +64,11 @@ class Scorer:
             (rounded up if not). Images whose sides are both at most ``tile`` go in one forward;
             ``0`` never tiles. For the patch model it caps the windows per forward at ``tile * 4``.
         stride: step in pixels between the 32x32 windows of the patch model (ignored for map models).
+        window: side of the independent windows a context model reads a larger image in (``None``: what
+            the network states, ``net.window``; ``0``: one piece). See "Windows" below.
+        overlap: read the windows at half-window steps and blend them with tent weights, so the map
+            has no seams on the window grid (about 4x the work on a large image; ``False``: windows
+            side by side). Ignored for a model not read in windows (its maps have no seams).
         device: where the network runs (default: where its parameters are).
 
     Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
@@ -106,7 +111,11 @@ class Scorer:
     multiples of ``window`` from the top-left corner; the last in each direction is moved in to touch
     the border and overlapping pixels take the mean. ``window=0`` turns this off (one piece, tiled as
     below); a map is then smooth across window borders, but a large image is read out of the model's
-    training regime (docs/results/evaluation.md measures both).
+    training regime (docs/results/evaluation.md measures both). Side by side, neighbouring windows are
+    read apart, so the map can step on the window grid. ``overlap=True`` reads windows every half window
+    and weighs each pixel of a window by a tent, ``min(i + 1/2, side - i - 1/2)`` along each axis (largest
+    at the window's centre, near 0 at its edge), dividing by the sum of the weights: two overlapping tents
+    sum to a constant, so each window fades out where the next fades in and the map is seamless.
 
     Flat bright windows (map models, ``exact_flat=True``): a pixel whose whole 11x11 SSIM window is one
     colour in the prepared input, of luminance >= 0.1 (a light or constant background seen directly, a
@@ -130,6 +139,7 @@ class Scorer:
         window: int | None = None,
         device: str | torch.device | None = None,
         exact_flat: bool = True,
+        overlap: bool = False,
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -156,6 +166,7 @@ class Scorer:
         self.align = int(getattr(net, "align", 1))
         self.tile = -(-tile // self.align) * self.align if tile else 0
         self.window = max(window, self.min_size) if window else 0
+        self.overlap = bool(overlap)
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
         self.exact_flat = bool(exact_flat) and output == "map"
@@ -315,10 +326,18 @@ class Scorer:
         return out.clamp_(0.0, 1.0)
 
     def _windowed_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
-        """Independent ``window``-side pieces, batched; overlaps (the last piece moved in) averaged."""
+        """Independent ``window``-side pieces, batched; overlaps averaged (``overlap``: tent-weighted).
+
+        Side by side, only the last piece in each direction (moved in to touch the border) overlaps.
+        """
         b, _, h, w = batch.shape
         wh, ww = min(self.window, h), min(self.window, w)
-        ys, xs = _window_starts(h, wh, wh), _window_starts(w, ww, ww)
+        if self.overlap:
+            ys, xs = _window_starts(h, wh, max(1, wh // 2)), _window_starts(w, ww, max(1, ww // 2))
+            weight = _tent(wh, self.device)[:, None] * _tent(ww, self.device)[None, :]
+        else:
+            ys, xs = _window_starts(h, wh, wh), _window_starts(w, ww, ww)
+            weight = torch.ones(wh, ww, dtype=torch.float32, device=self.device)
         total = torch.zeros(b, h, w, dtype=torch.float32, device=self.device)
         count = torch.zeros(h, w, dtype=torch.float32, device=self.device)
         chunk = max(1, ((self.tile or 512) ** 2) // (wh * ww))
@@ -329,8 +348,8 @@ class Scorer:
             pred = torch.cat([self.net(pieces[i : i + chunk])[:, 0] for i in range(0, pieces.shape[0], chunk)])
             pred = pred.view(b, len(xs), wh, ww)
             for k, x0 in enumerate(xs):
-                total[:, y0 : y0 + wh, x0 : x0 + ww] += pred[:, k]
-                count[y0 : y0 + wh, x0 : x0 + ww] += 1
+                total[:, y0 : y0 + wh, x0 : x0 + ww] += pred[:, k] * weight
+                count[y0 : y0 + wh, x0 : x0 + ww] += weight
         return (total / count).clamp_(0.0, 1.0)
 
     def _patch_map(self, x: Tensor) -> Tensor:
@@ -368,6 +387,12 @@ def _halo_tiles(h: int, w: int, tile: int, halo: int):
             x1, ix0 = min(x0 + tile, w), max(0, x0 - halo)
             read = (slice(iy0, min(h, y1 + halo)), slice(ix0, min(w, x1 + halo)))
             yield slice(y0, y1), slice(x0, x1), read, (slice(y0 - iy0, y1 - iy0), slice(x0 - ix0, x1 - ix0))
+
+
+def _tent(n: int, device: torch.device) -> Tensor:
+    """``(n,)`` tent weights ``min(i + 1/2, n - i - 1/2) / (n / 2)``: in (0, 1], two at half-``n`` steps sum to 1."""
+    i = torch.arange(n, dtype=torch.float32, device=device) + 0.5
+    return torch.minimum(i, n - i) / (n / 2)
 
 
 def _window_starts(n: int, p: int, stride: int) -> list[int]:
