@@ -2,7 +2,7 @@
 
     python benchmarks/render_compare.py --out reports/render_compare [--budget 1 --seeds 5 --stop-seeds 3]
         [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes]
-        [--scorer NAME|CKPT] [--twin-scorer NAME|CKPT] [--map-spp 64|none]
+        [--scorer NAME|CKPT] [--overlap] [--twin-scorer NAME|CKPT] [--map-spp 64|none]
         [--targets 0.9,0.95,0.98 --stop-max-spp 512 --stop-margins 0,0.005,0.01,0.015]
         [--skip equal_time,stop,half_cost] [--quick]
 
@@ -14,7 +14,8 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
 
 1. **equal_time** -- ``uniform`` (``mi.render``), ``uniform (per pixel)``, ``peer`` (``render_peer``, its
    threshold tuned at this budget on the families), ``adaptive`` (``--scorer``, default the shipped
-   ``fcnn_fast``), ``adaptive (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds,
+   ``unet_fast``), ``adaptive (overlap)`` (``--overlap``: the same map read in blended, overlapping windows),
+   ``adaptive (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds,
    methods interleaved per seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
    (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families) and
@@ -97,23 +98,28 @@ def map_spp_option(value: str) -> float | str | None:
     return value if value == LOOP_DEFAULT else float(value)
 
 
-def load_scorer(option: str, spec: str):
-    """The Scorer of a shipped name or a checkpoint path; a bad one is one line."""
+def load_scorer(option: str, spec: str, **kwargs):
+    """The Scorer of a shipped name or a checkpoint path (``kwargs`` to the Scorer); a bad one is one line."""
     from nriqa.inference.scorer import Scorer
 
     path = Path(spec)
     try:
-        return Scorer.from_checkpoint(path) if path.is_file() else Scorer.from_pretrained(spec)
+        return Scorer.from_checkpoint(path, **kwargs) if path.is_file() else Scorer.from_pretrained(spec, **kwargs)
     except (ValueError, OSError, KeyError) as exc:
         fail(f"{option} {spec}: {exc}")
 
 
 def load_scorers(args) -> dict[str, object]:
-    """``adaptive``: ``--scorer`` (the shipped ``fcnn_fast``); ``adaptive (two-buffer)``: ``--twin-scorer``."""
+    """``adaptive``: ``--scorer`` (the shipped default); ``adaptive (overlap)``: the same read in blended
+    windows (``--overlap``); ``adaptive (two-buffer)``: ``--twin-scorer``."""
     single = load_scorer("--scorer", args.scorer)
     if getattr(single, "needs_twin", False):
         fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
     scorers = {"adaptive": single}
+    if args.overlap:
+        if not single.window:
+            fail(f"--overlap: --scorer {args.scorer} is not read in windows")
+        scorers["adaptive (overlap)"] = load_scorer("--scorer", args.scorer, overlap=True)
     if args.twin_scorer:
         twin = load_scorer("--twin-scorer", args.twin_scorer)
         if not getattr(twin, "needs_twin", False):
@@ -287,6 +293,11 @@ def parse(argv):
         default=LOOP_DEFAULT,
         help="stop: past this many spp a single-image scorer rates a probe ('none': always the image; "
         "default: render_until's own)",
+    )
+    ap.add_argument(
+        "--overlap",
+        action="store_true",
+        help="equal time: also adaptive sampling with --scorer's map read in blended, overlapping windows",
     )
     ap.add_argument("--twin-scorer", help="a two-buffer scorer: shipped name or checkpoint path (skipped without)")
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")

@@ -74,6 +74,7 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
         (["--scorer", "dual_fast"], "--scorer dual_fast needs a twin"),
         (["--scorer", "no_such_model"], "--scorer no_such_model:"),
         (["--twin-scorer", "fcnn_fast"], "--twin-scorer fcnn_fast is no two-buffer scorer"),
+        (["--scorer", "fcnn_fast", "--overlap"], "--overlap: --scorer fcnn_fast is not read in windows"),
         (["--map-spp", "-1"], "--map-spp must be >= 0 or 'none'"),
     ],
 )
@@ -128,6 +129,16 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
     assert len(runs["equal_time"]) == 2 * 2 * 5 and set(runs["stop_thresholds"]) == {"0.9", "0.95", "0.98"}
     assert (out / "render_compare.png").stat().st_size > 10_000
     assert "No --twin-scorer" in table
+
+
+def test_overlap_adds_the_blended_map_to_the_equal_time_methods(tmp_path):
+    out = tmp_path / "out"
+    run_quick(out, "--overlap", "--skip", "stop,half_cost")
+    with open(out / "render_compare.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for scene in {r["scene"] for r in rows}:
+        methods = {r["method"] for r in rows if r["scene"] == scene}
+        assert methods == {"uniform", "uniform (per pixel)", "peer", "adaptive", "adaptive (overlap)", "oracle map"}
 
 
 def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
