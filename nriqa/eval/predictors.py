@@ -101,9 +101,9 @@ class CrossvalPredictor(ScorerPredictor):
 
 def blended(scorer):
     """A copy of ``scorer`` that reads its windows overlapping and blended (the same network)."""
-    twin = copy.copy(scorer)
-    twin.overlap = True
-    return twin
+    out = copy.copy(scorer)
+    out.overlap = True
+    return out
 
 
 def checkpoint_names(paths: list[str]) -> list[str]:
