@@ -98,13 +98,13 @@ def map_spp_option(value: str) -> float | str | None:
     return value if value == LOOP_DEFAULT else float(value)
 
 
-def load_scorer(option: str, spec: str, **kwargs):
-    """The Scorer of a shipped name or a checkpoint path (``kwargs`` to the Scorer); a bad one is one line."""
+def load_scorer(option: str, spec: str):
+    """The Scorer of a shipped name or a checkpoint path; a bad one is one line."""
     from nriqa.inference.scorer import Scorer
 
     path = Path(spec)
     try:
-        return Scorer.from_checkpoint(path, **kwargs) if path.is_file() else Scorer.from_pretrained(spec, **kwargs)
+        return Scorer.from_checkpoint(path) if path.is_file() else Scorer.from_pretrained(spec)
     except (ValueError, OSError, KeyError) as exc:
         fail(f"{option} {spec}: {exc}")
 
@@ -112,6 +112,8 @@ def load_scorer(option: str, spec: str, **kwargs):
 def load_scorers(args) -> dict[str, object]:
     """``adaptive``: ``--scorer`` (the shipped default); ``adaptive (overlap)``: the same read in blended
     windows (``--overlap``); ``adaptive (two-buffer)``: ``--twin-scorer``."""
+    from nriqa.eval.predictors import blended
+
     single = load_scorer("--scorer", args.scorer)
     if getattr(single, "needs_twin", False):
         fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
@@ -119,7 +121,7 @@ def load_scorers(args) -> dict[str, object]:
     if args.overlap:
         if not single.window:
             fail(f"--overlap: --scorer {args.scorer} is not read in windows")
-        scorers["adaptive (overlap)"] = load_scorer("--scorer", args.scorer, overlap=True)
+        scorers["adaptive (overlap)"] = blended(single)  # the same network, not loaded again
     if args.twin_scorer:
         twin = load_scorer("--twin-scorer", args.twin_scorer)
         if not getattr(twin, "needs_twin", False):
