@@ -5,9 +5,11 @@
 
 (``python predict.py ...`` in a checkout runs the same.) Per input, written atomically into ``--out``:
 ``<stem>_map.exr`` (the predicted map as float32, replicated to RGB) and ``<stem>_figure.png`` (the
-image the network saw | the map with a colour bar). Prints ``path score`` per image, or with ``--json``
-one JSON object per line (path, score, quantity, height, width, hdr, seconds, map, figure); stdout
-carries nothing else. Map models predict SSIM (higher is better), the patch model MAE (lower is better).
+image the network saw | the map with a colour bar). Prints ``path score`` per image -- ``path score low
+high`` for shipped weights with a calibrated interval (where the true mean SSIM lies, 90 %, its coverage
+measured on the card) -- or with ``--json`` one JSON object per line (path, score, low, high, level,
+quantity, height, width, hdr, seconds, map, figure); stdout carries nothing else. Map models predict
+SSIM (higher is better), the patch model MAE (lower is better).
 
 Inputs: EXR (RGB, RGBA, luminance-only; half or float; scanline or tiled) is linear HDR and is
 tone-mapped; PNG/JPEG (8 or 16 bit, gray, RGB, with or without alpha) is display-referred LDR
@@ -35,10 +37,13 @@ from nriqa.io.imread import read_image
 DESCRIPTION = "Score rendered images without their reference: a quality map and a pooled score per file."
 
 
-def write_figure(path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, quantity: str, title: str) -> None:
+def write_figure(
+    path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, quantity: str, title: str, span: str = ""
+) -> None:
     """Save ``image | map`` side by side with a colour bar as a PNG, atomically.
 
-    ``shown`` is the ``(H, W, 3)`` LDR image the network saw; ``qmap`` the ``(H, W)`` map.
+    ``shown`` is the ``(H, W, 3)`` LDR image the network saw; ``qmap`` the ``(H, W)`` map; ``span``
+    an interval to print after the mean (e.g. ``"90 %: 0.91-0.95"``).
     """
     import matplotlib
 
@@ -55,7 +60,8 @@ def write_figure(path: Path, shown: np.ndarray, qmap: np.ndarray, score: float, 
     vmax = 1.0 if quantity == "ssim" else max(float(qmap.max()), 1e-6)
     im = axes[1].imshow(qmap, cmap="viridis", vmin=0.0, vmax=vmax, interpolation="nearest")
     better = "higher is better" if quantity == "ssim" else "lower is better"
-    axes[1].set_title(f"predicted {quantity.upper()} map, mean {score:.4f} ({better})", fontsize=9)
+    span = f", {span}" if span else ""
+    axes[1].set_title(f"predicted {quantity.upper()} map, mean {score:.4f}{span} ({better})", fontsize=9)
     for ax in axes:
         ax.set_axis_off()
     fig.colorbar(im, ax=axes[1], fraction=0.046)
@@ -159,13 +165,18 @@ def score_file(scorer, name: str, args: argparse.Namespace, used: set[str], twin
             shown = scorer.prepare(t, [hdr])[0].permute(1, 2, 0).numpy()
         fig_path = args.out / f"{stem}_figure.png"
         title = f"{name} ({'HDR, tone-mapped' if hdr else 'LDR'})"
-        write_figure(fig_path, shown, result.map, result.score, result.quantity, title)
+        span = "" if result.low is None else f"{scorer.interval.level:.0%}: {result.low:.3f}-{result.high:.3f}"
+        write_figure(fig_path, shown, result.map, result.score, result.quantity, title, span)
     if not args.json:
-        return f"{name} {result.score:.6f}"
+        ends = "" if result.low is None else f" {result.low:.6f} {result.high:.6f}"
+        return f"{name} {result.score:.6f}{ends}"
     row = {
         "path": str(name),
         "twin": twin_name,
         "score": round(result.score, 6),
+        "low": None if result.low is None else round(result.low, 6),
+        "high": None if result.high is None else round(result.high, 6),
+        "level": None if scorer.interval is None else scorer.interval.level,
         "quantity": result.quantity,
         "height": int(image.shape[0]),
         "width": int(image.shape[1]),

@@ -30,7 +30,15 @@ from nriqa.errors import NriqaError
 from nriqa.io.atomic import atomic_path, write_text_atomic
 from nriqa.models import create_model
 
-__all__ = ["WEIGHTS_DIR", "PretrainedError", "save_pretrained", "load_pretrained", "list_pretrained", "sha256_file"]
+__all__ = [
+    "WEIGHTS_DIR",
+    "PretrainedError",
+    "save_pretrained",
+    "load_pretrained",
+    "list_pretrained",
+    "sha256_file",
+    "update_card",
+]
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 FORMAT = 1
@@ -136,6 +144,23 @@ def load_card(name: str, dir: str | os.PathLike | None = None) -> tuple[dict, Pa
     if not isinstance(card, dict) or "sha256" not in card or "spec" not in card:
         raise PretrainedError(f"{card_path}: model card without sha256/spec; re-export the weights")
     return card, pt
+
+
+def update_card(name: str, entries: Mapping, dir: str | os.PathLike | None = None) -> Path:
+    """Add or replace ``entries`` in the card of shipped weights ``name``; the weights are not touched.
+
+    For facts measured after export (a calibration, an evaluation). The keys that describe the file
+    itself (``name``, ``spec``, ``file``, ``sha256``, ``parameters``) cannot be set here. The card is
+    rewritten atomically. Returns the card's path.
+    """
+    fixed = {"name", "spec", "file", "sha256", "parameters"} & set(entries)
+    if fixed:
+        raise PretrainedError(f"card entries {sorted(fixed)} describe the weights file; re-export to change them")
+    card, pt = load_card(name, dir)
+    card.update(dict(entries))
+    path = pt.with_suffix(".json")
+    write_text_atomic(path, json.dumps(card, indent=2, sort_keys=True) + "\n")
+    return path
 
 
 def load_pretrained(name: str, dir: str | os.PathLike | None = None) -> nn.Module:

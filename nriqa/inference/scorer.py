@@ -24,6 +24,7 @@ from nriqa.core.ssim import FLAT_ROWS, WINDOW, flat_windows, may_be_flat
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
+from nriqa.inference.interval import ScoreInterval
 
 __all__ = ["Scorer", "ScoreResult", "ScorerInputError"]
 
@@ -43,12 +44,17 @@ class ScoreResult:
         quantity: ``"ssim"`` (map models: predicted SSIM in [0, 1], higher is better) or ``"mae"``
             (the patch model: predicted mean absolute error of the tone-mapped image, lower is better).
         hdr: whether each image was treated as linear HDR and tone-mapped (a bool, or a list for a batch).
+        low, high: where the true mean SSIM lies, at the level of the scorer's calibrated
+            :class:`~nriqa.inference.interval.ScoreInterval` (shipped weights carry one on their card:
+            90 %, measured coverage there); like ``score`` in type and shape, ``None`` without a calibration.
     """
 
     map: np.ndarray | Tensor
     score: float | np.ndarray | Tensor
     quantity: str
     hdr: bool | list[bool]
+    low: float | np.ndarray | Tensor | None = None
+    high: float | np.ndarray | Tensor | None = None
 
 
 class Scorer:
@@ -70,6 +76,10 @@ class Scorer:
             has no seams on the window grid (about 4x the work on a large image; ``False``: windows
             side by side). Ignored for a model not read in windows (its maps have no seams).
         device: where the network runs (default: where its parameters are).
+        interval: a calibrated :class:`~nriqa.inference.interval.ScoreInterval` for the pooled score;
+            results then carry ``low`` and ``high``. :meth:`from_pretrained` passes the one on the weights'
+            card (``score_interval``). It was measured for the scorer as shipped (windows side by side, the
+            flat rule on); with other settings its coverage is not measured.
 
     Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
     ``(B, 3, H, W)``; grayscale ``(H, W)`` (or one channel) is replicated to RGB, a fourth (alpha)
@@ -140,6 +150,7 @@ class Scorer:
         device: str | torch.device | None = None,
         exact_flat: bool = True,
         overlap: bool = False,
+        interval: ScoreInterval | None = None,
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -170,6 +181,11 @@ class Scorer:
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
         self.exact_flat = bool(exact_flat) and output == "map"
+        if interval is not None and not isinstance(interval, ScoreInterval):
+            raise TypeError(f"interval must be a ScoreInterval, got {type(interval).__name__}")
+        if interval is not None and self.quantity != "ssim":
+            raise ValueError("a score interval is for SSIM map models; the patch model predicts an MAE")
+        self.interval = interval
 
     @property
     def higher_is_better(self) -> bool:
@@ -181,11 +197,23 @@ class Scorer:
         """A scorer with the shipped weights ``name`` (:func:`nriqa.inference.pretrained.load_pretrained`).
 
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
+        The card's calibrated ``score_interval``, if it has one, becomes the scorer's ``interval``
+        (unless ``interval=`` is given; ``interval=None`` turns it off).
         """
         from nriqa.inference import DEFAULT_WEIGHTS
-        from nriqa.inference.pretrained import load_pretrained
+        from nriqa.inference.pretrained import PretrainedError, load_card, load_pretrained
 
-        return cls(load_pretrained(name or DEFAULT_WEIGHTS, dir=dir), **kwargs)
+        name = name or DEFAULT_WEIGHTS
+        net = load_pretrained(name, dir=dir)
+        if "interval" not in kwargs:
+            entry = load_card(name, dir)[0].get("score_interval")
+            try:
+                kwargs["interval"] = ScoreInterval.from_dict(entry) if entry is not None else None
+            except ValueError as exc:
+                raise PretrainedError(
+                    f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
+                ) from None
+        return cls(net, **kwargs)
 
     @classmethod
     def from_checkpoint(cls, path: str | os.PathLike, **kwargs) -> Scorer:
@@ -231,9 +259,18 @@ class Scorer:
         scores = scores.to(out_device)
         if is_numpy:
             qmap, scores = qmap.cpu().numpy(), scores.cpu().numpy()
+        low = high = None
+        if self.interval is not None:
+            ends = self.interval(np.asarray(scores if is_numpy else scores.cpu().numpy(), dtype=np.float64))
+            if is_numpy:
+                low, high = (v.astype(scores.dtype) for v in ends)
+            else:
+                low, high = (torch.as_tensor(v, dtype=scores.dtype, device=out_device) for v in ends)
         if single:
-            return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0])
-        return ScoreResult(qmap, scores, self.quantity, flags)
+            if low is not None:
+                low, high = float(low[0]), float(high[0])
+            return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0], low, high)
+        return ScoreResult(qmap, scores, self.quantity, flags, low, high)
 
     def _twin_batch(self, twin: np.ndarray | Tensor | None, shape: torch.Size) -> Tensor | None:
         """The twin as a batch like the image's, or ``None``; a refusal names what is wrong."""
