@@ -127,10 +127,7 @@ def bootstrap_interval(
         >>> (est, low, high)
         (1.0, 1.0, 1.0)
     """
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"bootstrap_interval: level must be in (0, 1), got {level}")
-    if resamples < 100:
-        raise ValueError(f"bootstrap_interval: need at least 100 resamples, got {resamples}")
+    check_bootstrap(resamples, level, "bootstrap_interval")
     a = torch.as_tensor(a, dtype=torch.float64)
     b = torch.as_tensor(b, dtype=torch.float64)
     if other is not None:
@@ -147,7 +144,21 @@ def bootstrap_interval(
     estimate = statistic(torch.arange(a.numel()))  # also validates the inputs, with fn's own message
     generator = torch.Generator().manual_seed(seed)
     draws = torch.randint(0, a.numel(), (resamples, a.numel()), generator=generator)
-    values = torch.tensor([statistic(index) for index in draws], dtype=torch.float64)
+    values = [statistic(index) for index in draws]
+    return (estimate, *percentile_bounds(values, level))
+
+
+def check_bootstrap(resamples: int, level: float, who: str) -> None:
+    """Refuse a bootstrap with fewer than 100 resamples or a level outside (0, 1) (``ValueError`` naming ``who``)."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"{who}: level must be in (0, 1), got {level}")
+    if resamples < 100:
+        raise ValueError(f"{who}: need at least 100 resamples, got {resamples}")
+
+
+def percentile_bounds(values, level: float) -> tuple[float, float]:
+    """The percentile interval of bootstrap ``values`` at ``level``: their quantiles at ``(1 -+ level) / 2``."""
     tail = (1.0 - level) / 2.0
+    values = torch.as_tensor(values, dtype=torch.float64)
     low, high = torch.quantile(values, torch.tensor([tail, 1.0 - tail], dtype=torch.float64)).tolist()
-    return estimate, low, high
+    return low, high

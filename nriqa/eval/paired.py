@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nriqa.core.correlation import check_bootstrap, percentile_bounds
 from nriqa.errors import NriqaError
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table, write_csv
@@ -59,10 +60,10 @@ def paired_difference(
     ``diff`` (candidate - base), ``low``/``high`` its cluster-bootstrap interval, and ``better``
     (the interval wholly below 0). Deterministic for a ``seed``.
     """
-    if resamples < 100:
-        raise PairedError(f"need at least 100 resamples, got {resamples}")
-    if not 0.0 < level < 1.0:
-        raise PairedError(f"level must be in (0, 1), got {level}")
+    try:
+        check_bootstrap(resamples, level, "paired_difference")
+    except ValueError as exc:
+        raise PairedError(str(exc)) from None
     names = {r["predictor"] for r in rows}
     for name in (base, candidate):
         if name not in names:
@@ -80,9 +81,7 @@ def paired_difference(
     counts = np.bincount(cluster, minlength=len(keys)).astype(float)
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, len(keys), size=(resamples, len(keys)))
-    values = sums[draws].sum(axis=1) / counts[draws].sum(axis=1)
-    tail = (1.0 - level) / 2.0
-    low, high = np.quantile(values, [tail, 1.0 - tail])
+    low, high = percentile_bounds(sums[draws].sum(axis=1) / counts[draws].sum(axis=1), level)
     return {
         "predictor": candidate,
         "base": base,
