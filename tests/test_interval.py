@@ -128,6 +128,30 @@ def test_the_default_scorer_gives_ordered_ends_for_every_kind_of_input():
     assert isinstance(tb.low, torch.Tensor) and torch.allclose(tb.low, torch.from_numpy(result.low))
 
 
+def test_images_taken_as_ldr_get_the_ldr_calibration():
+    hdr_iv = ScoreInterval(0.9, (0.0, 1.0), (-0.1,), (0.1,), (100,))
+    ldr_iv = ScoreInterval(0.9, (0.0, 1.0), (-0.3,), (0.0,), (100,))
+    scorer = Scorer(load_pretrained("unet_fast"), interval=hdr_iv, ldr_interval=ldr_iv)
+    rng = np.random.default_rng(0)
+    ldr = rng.random((64, 64, 3)).astype(np.float32)
+    batch = np.stack([ldr * 3.0, ldr])  # values above 1: HDR; within [0, 1]: LDR
+    r = scorer(batch)
+    assert r.hdr == [True, False]
+    assert r.low[0] == pytest.approx(max(r.score[0] - 0.1, 0.0)) and r.high[0] == pytest.approx(r.score[0] + 0.1)
+    assert r.low[1] == pytest.approx(max(r.score[1] - 0.3, 0.0)) and r.high[1] == pytest.approx(r.score[1])
+    assert scorer(ldr, hdr=True).high == pytest.approx(scorer(ldr, hdr=True).score + 0.1)
+    with pytest.raises(ValueError, match="give interval too"):
+        Scorer(load_pretrained("unet_fast"), ldr_interval=ldr_iv)
+
+
+def test_the_default_carries_an_ldr_calibration_and_dual_fast_does_not():
+    scorer = Scorer.from_pretrained()
+    assert scorer.ldr_interval is not None and sum(scorer.ldr_interval.counts) == 4776
+    assert "rule X2" in scorer.ldr_interval.source
+    assert Scorer.from_pretrained("dual_fast").ldr_interval is None
+    assert Scorer.from_pretrained(interval=None).ldr_interval is None
+
+
 def test_a_scorer_without_a_calibration_gives_no_ends():
     assert Scorer.from_pretrained(interval=None)(np.zeros((64, 64, 3), np.float32)).low is None
     assert Scorer(load_pretrained("fcnn_fast")).interval is None
@@ -216,3 +240,17 @@ def test_predict_prints_the_interval_of_the_shipped_default(tmp_path, capsys):
     # weights without a calibration: the line stays 'path score'
     assert predict.main([str(path), "--out", str(out), "--no-figures", "--model", "fcnn_fast"]) == 0
     assert len(capsys.readouterr().out.split()) == 2
+
+
+def test_coverage_fit_writes_the_card_and_check_reads_it(tmp_path, capsys):
+    save_pretrained(create_model("fcnn_fast"), "w", {"note": "test"}, dir=tmp_path, spec={"name": "fcnn_fast"})
+    cal = _images_csv(tmp_path / "cal.csv", 0)
+    weights = ["--weights", "w", "--dir", str(tmp_path)]
+    assert coverage.main(["fit", str(cal), "--predictor", "m", *weights, "--ldr"]) == 0
+    card = load_card("w", tmp_path)[0]
+    assert "score_interval_ldr" in card and "score_interval" not in card
+    load_pretrained("w", dir=tmp_path)  # the weights' checksum still holds
+    capsys.readouterr()
+    assert coverage.main(["check", str(cal), "--predictor", "m", *weights, "--ldr"]) == 0
+    assert coverage.main(["check", str(cal), "--predictor", "m", *weights]) == 2
+    assert "has no score_interval;" in capsys.readouterr().err

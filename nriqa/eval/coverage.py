@@ -10,7 +10,9 @@ against ``true``). Three commands, one predictor at a time::
     # leave one scene family out: fit on the others, cover it (the honest in-house figure)
     python -m nriqa.eval.coverage cv A/images.csv B/images.csv --predictor unet_fast
 
-``--exclude-scene`` drops a scene's rows (e.g. one whose reference is suspect). Tables are printed and,
+``--exclude-scene`` drops a scene's rows (e.g. one whose reference is suspect). ``--ldr`` makes ``fit`` and
+``check`` use the card's interval for LDR input (``score_interval_ldr``: fit it on rows of ``nriqa-evaluate
+--display ...`` runs), which the Scorer applies to images it takes as LDR. Tables are printed and,
 with ``--out``, written as ``coverage.{csv,md}``. Fitting and the interval itself:
 :class:`nriqa.inference.interval.ScoreInterval`.
 """
@@ -122,9 +124,14 @@ def _load_interval(args: argparse.Namespace) -> ScoreInterval:
             ) from None
         return ScoreInterval.from_dict(entry)
     card, _ = load_card(args.weights, args.dir)
-    if "score_interval" not in card:
-        raise CoverageError(f"the card of {args.weights!r} has no score_interval; fit one first ('fit --weights')")
-    return ScoreInterval.from_dict(card["score_interval"])
+    key = _card_key(args)
+    if key not in card:
+        raise CoverageError(f"the card of {args.weights!r} has no {key}; fit one first ('fit --weights')")
+    return ScoreInterval.from_dict(card[key])
+
+
+def _card_key(args: argparse.Namespace) -> str:
+    return "score_interval_ldr" if args.ldr else "score_interval"
 
 
 def _write(out: str | None, title: str, table: list[dict]) -> None:
@@ -160,6 +167,11 @@ def build_parser() -> argparse.ArgumentParser:
         if name in ("fit", "check"):
             p.add_argument("--weights", default=None, help="shipped weights whose card holds (or gets) the interval")
             p.add_argument("--dir", default=None, help="folder of the weights (default: the shipped ones)")
+            p.add_argument(
+                "--ldr",
+                action="store_true",
+                help="the card's interval for LDR input (score_interval_ldr) instead of score_interval",
+            )
         if name == "check":
             p.add_argument("--interval", default=None, help="a JSON file 'fit --out' wrote")
     return ap
@@ -184,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
                 write_text_atomic(Path(args.out), json.dumps(entry, indent=2) + "\n")
                 print(f"wrote {args.out}")
             if args.weights:
-                print(f"wrote {update_card(args.weights, {'score_interval': entry}, args.dir)}")
+                print(f"wrote {update_card(args.weights, {_card_key(args): entry}, args.dir)}")
             print(json.dumps(entry))
         elif args.cmd == "check":
             if bool(args.interval) == bool(args.weights):

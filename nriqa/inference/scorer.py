@@ -80,6 +80,9 @@ class Scorer:
             results then carry ``low`` and ``high``. :meth:`from_pretrained` passes the one on the weights'
             card (``score_interval``). It was measured for the scorer as shipped (windows side by side, the
             flat rule on); with other settings its coverage is not measured.
+        ldr_interval: the interval for images taken as LDR (display-referred input, e.g. PNGs from other
+            pipelines), if it was calibrated apart (card ``score_interval_ldr``); ``None``: ``interval``
+            serves both.
 
     Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
     ``(B, 3, H, W)``; grayscale ``(H, W)`` (or one channel) is replicated to RGB, a fourth (alpha)
@@ -151,6 +154,7 @@ class Scorer:
         exact_flat: bool = True,
         overlap: bool = False,
         interval: ScoreInterval | None = None,
+        ldr_interval: ScoreInterval | None = None,
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -181,11 +185,15 @@ class Scorer:
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
         self.exact_flat = bool(exact_flat) and output == "map"
-        if interval is not None and not isinstance(interval, ScoreInterval):
-            raise TypeError(f"interval must be a ScoreInterval, got {type(interval).__name__}")
-        if interval is not None and self.quantity != "ssim":
-            raise ValueError("a score interval is for SSIM map models; the patch model predicts an MAE")
+        for given in (interval, ldr_interval):
+            if given is not None and not isinstance(given, ScoreInterval):
+                raise TypeError(f"a score interval must be a ScoreInterval, got {type(given).__name__}")
+            if given is not None and self.quantity != "ssim":
+                raise ValueError("a score interval is for SSIM map models; the patch model predicts an MAE")
+        if ldr_interval is not None and interval is None:
+            raise ValueError("ldr_interval refines interval for LDR input; give interval too")
         self.interval = interval
+        self.ldr_interval = ldr_interval
 
     @property
     def higher_is_better(self) -> bool:
@@ -197,8 +205,8 @@ class Scorer:
         """A scorer with the shipped weights ``name`` (:func:`nriqa.inference.pretrained.load_pretrained`).
 
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
-        The card's calibrated ``score_interval``, if it has one, becomes the scorer's ``interval``
-        (unless ``interval=`` is given; ``interval=None`` turns it off).
+        The card's calibrated ``score_interval`` (and ``score_interval_ldr``), if it has them, become the
+        scorer's ``interval`` (and ``ldr_interval``) unless given (``interval=None`` turns both off).
         """
         from nriqa.inference import DEFAULT_WEIGHTS
         from nriqa.inference.pretrained import PretrainedError, load_card, load_pretrained
@@ -206,9 +214,11 @@ class Scorer:
         name = name or DEFAULT_WEIGHTS
         net = load_pretrained(name, dir=dir)
         if "interval" not in kwargs:
-            entry = load_card(name, dir)[0].get("score_interval")
+            card = load_card(name, dir)[0]
             try:
-                kwargs["interval"] = ScoreInterval.from_dict(entry) if entry is not None else None
+                for key, arg in (("score_interval", "interval"), ("score_interval_ldr", "ldr_interval")):
+                    entry = card.get(key)
+                    kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
             except ValueError as exc:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
@@ -261,7 +271,7 @@ class Scorer:
             qmap, scores = qmap.cpu().numpy(), scores.cpu().numpy()
         low = high = None
         if self.interval is not None:
-            ends = self.interval(np.asarray(scores if is_numpy else scores.cpu().numpy(), dtype=np.float64))
+            ends = self.interval_ends(np.asarray(scores if is_numpy else scores.cpu().numpy()), flags)
             if is_numpy:
                 low, high = (v.astype(scores.dtype) for v in ends)
             else:
@@ -271,6 +281,15 @@ class Scorer:
                 low, high = float(low[0]), float(high[0])
             return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0], low, high)
         return ScoreResult(qmap, scores, self.quantity, flags, low, high)
+
+    def interval_ends(self, scores: np.ndarray, hdr: list[bool]) -> tuple[np.ndarray, np.ndarray]:
+        """Ends of the calibrated interval for pooled ``scores`` of images taken as HDR or not (``hdr``)."""
+        values = np.asarray(scores, dtype=np.float64)
+        low, high = self.interval(values)
+        if self.ldr_interval is not None:
+            ldr = ~np.asarray(hdr, dtype=bool)
+            low[ldr], high[ldr] = (end[ldr] for end in self.ldr_interval(values))
+        return low, high
 
     def _twin_batch(self, twin: np.ndarray | Tensor | None, shape: torch.Size) -> Tensor | None:
         """The twin as a batch like the image's, or ``None``; a refusal names what is wrong."""
