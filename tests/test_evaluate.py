@@ -402,3 +402,27 @@ def test_by_spp_bands_hold_each_image_once_with_its_error():
     assert bands["9-64"]["bias"] == pytest.approx(-0.2) and bands["9-64"]["mae"] == pytest.approx(0.2)
     assert bands[">=65"]["n"] == 1 and bands[">=65"]["bias"] == 0.0  # a NaN score is left out, not averaged in
     assert by_spp(rows, ["other"]) == []
+
+
+def test_shipped_scorers_rows_carry_their_interval_and_the_tables_its_coverage(synthetic_dataset, tmp_path):
+    """Each row gets the ends of the scorer's calibrated interval (the LDR one through another display);
+    coverage and width are their share and mean over the rows; scorers without a calibration get none."""
+    import csv
+
+    from nriqa.inference.scorer import Scorer
+
+    base = [str(synthetic_dataset), "--baselines", "wavelet_sigma", "--no-figures", "--model", "unet_fast"]
+    main([*base, "--out", str(tmp_path / "plain")])
+    main([*base, "--out", str(tmp_path / "srgb"), "--display", "srgb"])
+    scorer = Scorer.from_pretrained()
+    for name, tonemapped in (("plain", True), ("srgb", False)):
+        rows = list(csv.DictReader((tmp_path / name / "images.csv").open()))
+        own = [r for r in rows if r["predictor"] == "unet_fast"]
+        mapped = np.array([float(r["mapped"]) for r in own])
+        low, high = scorer.interval_ends(mapped, [tonemapped] * len(own))
+        assert np.allclose([float(r["low"]) for r in own], low) and np.allclose([float(r["high"]) for r in own], high)
+        assert all(r["low"] == "" or r["low"] == "nan" for r in rows if r["predictor"] == "wavelet_sigma")
+        true = np.array([float(r["true"]) for r in own])
+        table = {r["predictor"]: r for r in csv.DictReader((tmp_path / name / "comparison.csv").open())}
+        assert float(table["unet_fast"]["coverage"]) == pytest.approx(((low <= true) & (true <= high)).mean())
+        assert float(table["unet_fast"]["width"]) == pytest.approx((high - low).mean())

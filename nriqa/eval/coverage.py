@@ -110,6 +110,26 @@ def leave_one_out(rows: list[dict], **fit_kwargs) -> list[dict]:
     return table
 
 
+def add_interval_ends(rows: list[dict], predictors: list, *, tonemapped: bool) -> None:
+    """Give every row ``low`` and ``high``: the ends of its predictor's calibrated interval around ``mapped``.
+
+    For predictors whose scorer carries an interval (``scorer.interval``; shipped weights with a
+    ``score_interval`` on their card); NaN for the others. ``tonemapped``: the images went through the
+    package's tone map, as EXR renders do (the HDR calibration), rather than another display (the LDR one).
+    """
+    for p in predictors:
+        scorer = getattr(p, "scorer", None)
+        own = [r for r in rows if r["predictor"] == p.name]
+        if scorer is None or getattr(scorer, "interval", None) is None:
+            for r in own:
+                r["low"] = r["high"] = float("nan")
+            continue
+        mapped = np.array([float(r["mapped"]) for r in own], dtype=np.float64)
+        low, high = scorer.interval_ends(mapped, [tonemapped] * len(own))
+        for r, lo, hi in zip(own, low, high):
+            r["low"], r["high"] = float(lo), float(hi)
+
+
 def _load_interval(args: argparse.Namespace) -> ScoreInterval:
     import json
 

@@ -46,6 +46,7 @@ from nriqa.eval.baselines import Item, Prediction, Predictor, baseline_names
 from nriqa.eval.baselines.mapping import MonotoneMap
 from nriqa.eval.by_spp import COLUMNS as SPP_COLUMNS
 from nriqa.eval.by_spp import by_spp
+from nriqa.eval.coverage import add_interval_ends
 from nriqa.eval.dataset import Dataset, EvaluationError, load_dataset, records_of
 from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
 from nriqa.eval.paired import paired_table, write_paired
@@ -73,9 +74,23 @@ COMPARISON_COLUMNS = [
     "pixel_pcc",
     "scene_pcc",
     "scene_srocc",
+    "coverage",
+    "width",
 ]
-SCENE_COLUMNS = ["predictor", "scene", "n", "pcc", "srocc", "tau", "mae", "bias", "pixel_pcc"]
-IMAGE_COLUMNS = ["predictor", "id", "scene", "variant", "algorithm", "spp", "true", "predicted", "mapped"]
+SCENE_COLUMNS = ["predictor", "scene", "n", "pcc", "srocc", "tau", "mae", "bias", "pixel_pcc", "coverage", "width"]
+IMAGE_COLUMNS = [
+    "predictor",
+    "id",
+    "scene",
+    "variant",
+    "algorithm",
+    "spp",
+    "true",
+    "predicted",
+    "mapped",
+    "low",
+    "high",
+]
 
 
 def signed(p: Predictor, x):
@@ -206,6 +221,11 @@ def _stats(p: Predictor, rows: list[dict], pixel_parts: list) -> dict:
     out["mae"] = float(np.abs(err).mean()) if err.size else math.nan
     out["bias"] = float(err.mean()) if err.size else math.nan  # > 0: reads images too good
     parts = [x for x in pixel_parts if x is not None]
+    low = np.array([r.get("low", math.nan) for r in rows], dtype=float)
+    high = np.array([r.get("high", math.nan) for r in rows], dtype=float)
+    has = np.isfinite(low) & np.isfinite(high) & np.isfinite(true)
+    out["coverage"] = float(((low <= true) & (true <= high))[has].mean()) if has.any() else math.nan
+    out["width"] = float((high - low)[has].mean()) if has.any() else math.nan
     out["pixel_pcc"] = math.nan
     if parts:
         a, b = torch.cat([x[0] for x in parts]).double(), torch.cat([x[1] for x in parts]).double()
@@ -235,7 +255,9 @@ def _write_tables(
         f"# Evaluation on {root}\n\n{n_images} test images, scenes: {', '.join(scenes)}. {shown}Image level: predicted "
         "vs true mean SSIM (correlations of the score signed so that higher = better; MAE on the SSIM scale, raw "
         "scores through a monotone map fitted on the other scenes; bias: mean of predicted minus true, > 0 reads "
-        "the images too good). Pixel level: PCC of the maps. `loso`: fitted leave-one-scene-out.\n\n"
+        "the images too good). Pixel level: PCC of the maps. `loso`: fitted leave-one-scene-out. `coverage`: share "
+        "of images whose true mean SSIM lies in the scorer's calibrated interval, `width` its mean width (scorers "
+        "whose weights carry one; nriqa.eval.coverage).\n\n"
     )
     write_text_atomic(out / "comparison.md", header + markdown_table(comparison, COMPARISON_COLUMNS))
     write_text_atomic(out / "per_scene.md", header + markdown_table(per_scene, SCENE_COLUMNS))
@@ -304,6 +326,7 @@ def evaluate(
         raise EvaluationError(f"unknown scene(s) {', '.join(unknown)}; the dataset has: {', '.join(present)}")
     eval_scenes = scenes or present
     rows, pixels, maps = run_predictors(data, predictors, eval_scenes)
+    add_interval_ends(rows, predictors, tonemapped=display is None)
     comparison, per_scene = summarise(rows, pixels, predictors, eval_scenes)
     n_images = len([r for r in rows if r["predictor"] == predictors[0].name])
     ssim_names = [p.name for p in predictors if p.scale == "ssim"]
