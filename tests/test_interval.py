@@ -97,7 +97,7 @@ def test_fit_refuses_mismatched_or_too_few_images():
 # --- the shipped cards and the Scorer -------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["unet_fast", "dual_fast"])
+@pytest.mark.parametrize("name", ["unet_fast", "dual_fast", "fcnn_fast"])
 def test_shipped_cards_carry_a_90_percent_interval_fitted_on_unlearnt_images(name):
     entry = load_card(name)[0]["score_interval"]
     iv = ScoreInterval.from_dict(entry)
@@ -238,7 +238,7 @@ def test_predict_prints_the_interval_of_the_shipped_default(tmp_path, capsys):
     row = json.loads(capsys.readouterr().out)
     assert row["level"] == 0.9 and row["low"] == pytest.approx(float(low), abs=2e-6) and row["score"] == float(score)
     # weights without a calibration: the line stays 'path score'
-    assert predict.main([str(path), "--out", str(out), "--no-figures", "--model", "fcnn_fast"]) == 0
+    assert predict.main([str(path), "--out", str(out), "--no-figures", "--model", "fcnn"]) == 0
     assert len(capsys.readouterr().out.split()) == 2
 
 
