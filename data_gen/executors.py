@@ -13,6 +13,7 @@ docs/cluster.md says how.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import gc
 import logging
 import multiprocessing
 import os
@@ -104,10 +105,21 @@ def _setup_worker(backend: str, threads: int | None, verify: bool) -> None:
 
 
 def render_on_worker(root: str, job: Job, backend: str, threads: int | None, verify: bool) -> tuple[int, int]:
-    """The Dask task of one job: set up Mitsuba (first time only), then :func:`run_job`."""
+    """The Dask task of one job: set up Mitsuba (first time only), then :func:`run_job`.
+
+    The cyclic garbage collector is held off while the job renders and run at its end, in this thread: a
+    Dask worker's event loop runs in another thread of the process, and a collection there that freed the
+    previous job's scene took Dr.Jit's lock while holding the GIL, as the render thread held Dr.Jit's lock
+    and waited for the GIL -- the worker hung for good (stop 42; the local-cluster test, two runs in three).
+    """
     with _WORKER_LOCK:
         _setup_worker(backend, threads, verify)
-        return run_job(root, job, backend)
+        gc.disable()
+        try:
+            return run_job(root, job, backend)
+        finally:
+            gc.collect()  # this job's Mitsuba objects die here, while no render holds Dr.Jit's lock
+            gc.enable()
 
 
 def _import_distributed():
