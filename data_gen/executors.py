@@ -110,7 +110,7 @@ def render_on_worker(root: str, job: Job, backend: str, threads: int | None, ver
     The cyclic garbage collector is held off while the job renders and run at its end, in this thread: a
     Dask worker's event loop runs in another thread of the process, and a collection there that freed the
     previous job's scene took Dr.Jit's lock while holding the GIL, as the render thread held Dr.Jit's lock
-    and waited for the GIL -- the worker hung for good (stop 42; the local-cluster test, two runs in three).
+    and waited for the GIL -- the worker hung for good (stop 42: the local-cluster test hung in 2 of 13 runs).
     """
     with _WORKER_LOCK:
         _setup_worker(backend, threads, verify)
