@@ -144,11 +144,13 @@ def test_images_taken_as_ldr_get_the_ldr_calibration():
         Scorer(load_pretrained("unet_fast"), ldr_interval=ldr_iv)
 
 
-def test_the_default_carries_an_ldr_calibration_and_dual_fast_does_not():
+def test_the_shipped_ldr_calibrations():
     scorer = Scorer.from_pretrained()
     assert scorer.ldr_interval is not None and sum(scorer.ldr_interval.counts) == 4776
     assert "rule X2" in scorer.ldr_interval.source
-    assert Scorer.from_pretrained("dual_fast").ldr_interval is None
+    dual = Scorer.from_pretrained("dual_fast").ldr_interval
+    assert dual is not None and sum(dual.counts) == 5916 and "rule X4" in dual.source
+    assert Scorer.from_pretrained("fcnn_fast").ldr_interval is None
     assert Scorer.from_pretrained(interval=None).ldr_interval is None
 
 
