@@ -20,6 +20,7 @@ with ``--out``, written as ``coverage.{csv,md}``. Fitting and the interval itsel
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -66,14 +67,26 @@ def summary(group: str, interval: ScoreInterval, predicted: np.ndarray, true: np
     return _row(group, predicted, true, lo, hi)
 
 
+def coverage_width(true: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[float, float]:
+    """Share of images whose ``true`` score lies in ``[low, high]``, and the mean width, over the images
+    with finite values (NaN, NaN if none): the ``coverage`` and ``width`` of every table here and of
+    ``nriqa-evaluate``'s."""
+    has = np.isfinite(low) & np.isfinite(high) & np.isfinite(true)
+    if not has.any():
+        return math.nan, math.nan
+    t, lo, hi = true[has], low[has], high[has]
+    return float(((lo <= t) & (t <= hi)).mean()), float((hi - lo).mean())
+
+
 def _row(group: str, predicted: np.ndarray, true: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> dict:
+    cover, width = coverage_width(true, lo, hi)
     return {
         "group": group,
         "n": int(predicted.size),
-        "coverage": float(((lo <= true) & (true <= hi)).mean()),
+        "coverage": cover,
         "below": float((true < lo).mean()),
         "above": float((true > hi).mean()),
-        "width": float((hi - lo).mean()),
+        "width": width,
         "bias": float((predicted - true).mean()),
     }
 
@@ -82,10 +95,9 @@ def check(rows: list[dict], interval: ScoreInterval) -> list[dict]:
     """Coverage pooled, per band of the predicted score, and per scene, of ``rows`` (one predictor)."""
     p, t = _arrays(rows)
     table = [summary("all", interval, p, t)]
-    edges = interval.edges
+    edges, band = interval.edges, interval.band(p)
     for k in range(len(edges) - 1):
-        last = k == len(edges) - 2
-        m = (p >= edges[k]) & ((p <= edges[k + 1]) if last else (p < edges[k + 1]))
+        m = band == k
         if m.any():
             table.append(summary(f"score {edges[k]:.2f}-{edges[k + 1]:.2f}", interval, p[m], t[m]))
     scenes = np.array([r["scene"] for r in rows])

@@ -46,7 +46,7 @@ from nriqa.eval.baselines import Item, Prediction, Predictor, baseline_names
 from nriqa.eval.baselines.mapping import MonotoneMap
 from nriqa.eval.by_spp import COLUMNS as SPP_COLUMNS
 from nriqa.eval.by_spp import by_spp
-from nriqa.eval.coverage import add_interval_ends
+from nriqa.eval.coverage import add_interval_ends, coverage_width
 from nriqa.eval.dataset import Dataset, EvaluationError, load_dataset, records_of
 from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
 from nriqa.eval.paired import paired_table, write_paired
@@ -223,9 +223,7 @@ def _stats(p: Predictor, rows: list[dict], pixel_parts: list) -> dict:
     parts = [x for x in pixel_parts if x is not None]
     low = np.array([r.get("low", math.nan) for r in rows], dtype=float)
     high = np.array([r.get("high", math.nan) for r in rows], dtype=float)
-    has = np.isfinite(low) & np.isfinite(high) & np.isfinite(true)
-    out["coverage"] = float(((low <= true) & (true <= high))[has].mean()) if has.any() else math.nan
-    out["width"] = float((high - low)[has].mean()) if has.any() else math.nan
+    out["coverage"], out["width"] = coverage_width(true, low, high)
     out["pixel_pcc"] = math.nan
     if parts:
         a, b = torch.cat([x[0] for x in parts]).double(), torch.cat([x[1] for x in parts]).double()

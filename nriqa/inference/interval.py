@@ -116,12 +116,17 @@ class ScoreInterval:
     def __call__(self, score: float | np.ndarray) -> tuple[float, float] | tuple[np.ndarray, np.ndarray]:
         """``(low, high)`` ends for a score, or arrays of them for an array of scores (NaN stays NaN)."""
         s = np.asarray(score, dtype=np.float64)
-        band = _band_of(np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0), list(self.edges))
+        band = self.band(s)
         lo = np.clip(s + np.asarray(self.low)[band], 0.0, 1.0)
         hi = np.clip(s + np.asarray(self.high)[band], 0.0, 1.0)
         if s.ndim == 0:
             return float(lo), float(hi)
         return lo, hi
+
+    def band(self, score: float | np.ndarray) -> np.ndarray:
+        """Index of the band each score falls in (scores outside [0, 1], and NaN, count as the nearest end)."""
+        s = np.asarray(score, dtype=np.float64)
+        return _band_of(np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0), self.edges)
 
     def covers(self, predicted: np.ndarray, true: np.ndarray) -> np.ndarray:
         """Per image, whether its true score lies in the interval of its predicted one."""
