@@ -2,7 +2,7 @@
 
     python benchmarks/render_compare.py --out reports/render_compare [--budget 1 --seeds 5 --stop-seeds 3]
         [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes]
-        [--scorer NAME|CKPT] [--overlap] [--twin-scorer NAME|CKPT] [--map-spp 64|none]
+        [--scorer NAME|CKPT] [--overlap] [--twin-scorer NAME|CKPT] [--map-spp 64|none] [--sure]
         [--targets 0.9,0.95,0.98 --stop-max-spp 512 --stop-margins 0,0.005,0.01,0.015]
         [--skip equal_time,stop,half_cost] [--quick]
 
@@ -18,8 +18,9 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
    ``adaptive (two-buffer)`` (``--twin-scorer``) and ``oracle map``, each ``--budget`` seconds,
    methods interleaved per seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
-   (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families) and
-   ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
+   (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families), with
+   ``--sure`` the scorer stopping on its calibrated interval's low end (``sure (low end)``, nothing tuned),
+   and ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
 3. **half_cost** -- a ``PixelRenderer`` call, the same with the even sums, two calls of half the samples.
 
 The guide: ``docs/render_compare.md``.
@@ -37,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from render_compare_stop import FAMILIES, STOP_GRID, STOP_MARGINS, half_cost, stop_section  # noqa: E402
+from render_compare_stop import FAMILIES, STOP_GRID, STOP_MARGINS, SURE, half_cost, stop_section  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -117,6 +118,8 @@ def load_scorers(args) -> dict[str, object]:
     single = load_scorer("--scorer", args.scorer)
     if getattr(single, "needs_twin", False):
         fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
+    if args.sure and getattr(single, "interval", None) is None:
+        fail(f"--sure: --scorer {args.scorer} has no calibrated interval (shipped weights carry one on their card)")
     scorers = {"adaptive": single}
     if args.overlap:
         if not single.window:
@@ -234,7 +237,7 @@ def plot(et_rows, stop_rows, args) -> None:
     axes[0].set(ylabel="(1 - SSIM) / uniform's", title=f"equal time, {args.budget:g} s per image")
     names = list(dict.fromkeys(r["scene"] for r in stop_rows))
     axes[1].axhspan(*WINDOW, color="0.9", zorder=0)
-    markers = {"learned": "o", "two-buffer": "s", "peer": "^"}
+    markers = {"learned": "o", "two-buffer": "s", "peer": "^", SURE: "v"}
     for r in stop_rows:
         k = args.targets.index(r["target"])
         axes[1].scatter(
@@ -302,6 +305,11 @@ def parse(argv):
         help="equal time: also adaptive sampling with --scorer's map read in blended, overlapping windows",
     )
     ap.add_argument("--twin-scorer", help="a two-buffer scorer: shipped name or checkpoint path (skipped without)")
+    ap.add_argument(
+        "--sure",
+        action="store_true",
+        help="stop: also --scorer stopping when its calibrated interval's low end reaches the target (sure=True)",
+    )
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
     ap.add_argument("--half-repeats", type=int, default=5)
     ap.add_argument("--threads", type=int, default=1, help="torch threads")

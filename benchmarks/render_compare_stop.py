@@ -17,6 +17,7 @@ FAMILIES = ("caustic", "cornell", "door", "envmap", "glossy", "medium", "shadows
 STOP_GRID = tuple(0.4 * 0.5 ** (k / 2) for k in range(12))  # stop: 0.4 down to 0.009, steps of sqrt(2)
 STOP_MARGINS = (0.0, 0.005, 0.01, 0.015)  # the learned stop rules stop at predicted >= target + margin
 LEARNED = (("learned", "adaptive"), ("two-buffer", "adaptive (two-buffer)"))  # stop method -> scorer key
+SURE = "sure (low end)"  # --sure: the single-image scorer, stopping when its interval's low end reaches the target
 
 
 def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
@@ -50,9 +51,9 @@ def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
     return chosen, rows
 
 
-def learned_stop(scene, reference, scorer, target: float, margin: float, seed: int, args) -> dict:
+def learned_stop(scene, reference, scorer, target: float, margin: float, seed: int, args, sure: bool = False) -> dict:
     """The last row of ``render_until`` with ``scorer`` stopping at predicted >= ``target + margin`` (below 1),
-    scoring every step."""
+    scoring every step; ``sure``: at the first low end of its calibrated interval >= ``target + margin``."""
     from nriqa.render import render_until
 
     return render_until(
@@ -67,6 +68,7 @@ def learned_stop(scene, reference, scorer, target: float, margin: float, seed: i
         seed=seed,
         warmup=False,
         map_spp=args.map_spp,
+        sure=sure,
     )[1][-1]
 
 
@@ -122,6 +124,10 @@ def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
                     fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target, m=margins[label]: (
                         learned_stop(sc, ref, by, t, m, s, args)
                     )
+            if args.sure:
+                fns[SURE] = lambda s, sc=scene, ref=reference, by=scorers["adaptive"], t=target: learned_stop(
+                    sc, ref, by, t, 0.0, s, args, sure=True
+                )
             for seed in args.stop_seeds:
                 for method, fn in fns.items():
                     end = fn(seed)  # the run's last row
@@ -189,6 +195,10 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
             + ", ".join(f"{k} {v:g}" for k, v in margins.items())
             + "):\n",
             markdown_table(margin_rows, ["method", "margin", "tuning runs", "on target"]),
+            f"'{SURE}' (--sure): the single-image scorer stops at the first low end of its calibrated interval at or "
+            "above the target (no margin, nothing tuned; it rates the image itself at every count).\n"
+            if args.sure
+            else "",
             markdown_table(
                 rows,
                 [
@@ -212,6 +222,7 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
                     "method",
                     "scenes",
                     "runs on target",
+                    "runs at or above",
                     "true SSIM (mean)",
                     "spp / uniform needs (geometric mean)",
                 ],

@@ -144,7 +144,7 @@ def test_overlap_adds_the_blended_map_to_the_equal_time_methods(tmp_path):
 def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     """``--skip equal_time``: no clock, so no quiet machine needed; uniform's curves are measured for it."""
     out = tmp_path / "out"
-    run_quick(out, "--skip", "equal_time,half_cost", "--map-spp", "none")
+    run_quick(out, "--skip", "equal_time,half_cost", "--map-spp", "none", "--sure")
     table = (out / "render_compare.md").read_text()
     assert "## Early stopping" in table and "## Equal time" not in table and "nan" not in table.lower()
     assert not (out / "render_compare.csv").exists()
@@ -157,3 +157,7 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     # the learned rule's margin, tuned on the family (cornell) from the quick grid (0, 0.01)
     assert runs["stop_margins"]["learned"] in (0.0, 0.01) and "Learned stop rules" in table
     assert {r["margin"] for r in runs["stop_margin_tuning"]} == {0.0, 0.01}
+    # --sure: the shipped scorer stopping on its interval's low end, nothing tuned; runs end on it or at max_spp
+    sure = [r for r in stops if r["method"] == "sure (low end)"]
+    assert len(sure) == len(stops) // 3 and {r["method"] for r in stops} == {"peer", "learned", "sure (low end)"}
+    assert all(set(r["stops"].split("/")) <= {"sure", "max_spp"} for r in sure) and "runs at or above" in table

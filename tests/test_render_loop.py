@@ -3,6 +3,8 @@ loops and tiles; llvm_ad_rgb, where it works, for per-pixel sampling (PixelRende
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -140,6 +142,47 @@ class RecordingScorer(ReferenceScorer):
     def __call__(self, image, *, hdr=None):
         self.images.append(np.array(image))
         return super().__call__(image, hdr=hdr)
+
+
+class CalibratedOracle(ReferenceScorer):
+    """The oracle with an interval of its own: ``low`` is the true score minus ``reach``."""
+
+    interval = "stands in for a calibration"
+
+    def __init__(self, reference, reach):
+        super().__init__(reference)
+        self.reach = reach
+
+    def __call__(self, image, *, hdr=None):
+        result = super().__call__(image, hdr=hdr)
+        return dataclasses.replace(result, low=result.score - self.reach, high=min(result.score + self.reach, 1.0))
+
+
+def test_render_until_sure_stops_on_the_low_end(scene, reference):
+    oracle = CalibratedOracle(reference, 0.1)
+    kwargs = dict(time_budget_s=60, spp_per_step=2, reference=reference, max_spp=512, max_overhead=None, map_spp=4)
+    _, plain = render_until(scene, oracle, 0.8, **kwargs)
+    _, sure = render_until(scene, oracle, 0.8, sure=True, **kwargs)
+    assert plain[-1]["stop"] == "target" and sure[-1]["stop"] == "sure"
+    # every row rates the image itself (map_spp does not apply), so every row has its low end
+    assert all(r["scored"] and r["low"] == pytest.approx(r["predicted"] - 0.1) for r in sure)
+    assert sure[-1]["low"] >= 0.8 and all(r["low"] < 0.8 for r in sure[:-1])
+    assert sure[-1]["true"] >= 0.9 > plain[-1]["true"] and sure[-1]["spp"] > plain[-1]["spp"]
+    # past map_spp the plain loop's prediction is the error model's: no low end there
+    _, further = render_until(scene, oracle, 0.95, **kwargs)
+    assert further[0]["low"] is not None and further[-1]["spp"] > 8 and further[-1]["low"] is None
+
+
+def test_render_until_sure_needs_a_calibrated_single_image_ssim_scorer(scene, scorer, reference):
+    with pytest.raises(ValueError, match="target_score"):
+        render_until(scene, CalibratedOracle(reference, 0.1), None, 1, sure=True, warmup=False)
+    with pytest.raises(ValueError, match="calibrated interval"):
+        render_until(scene, scorer, 0.9, 1, sure=True, warmup=False)  # untrained, no card: no interval
+    with pytest.raises(ValueError, match="single-image SSIM"):
+        render_until(scene, None, 0.9, 1, sure=True, warmup=False)
+    torch.manual_seed(0)
+    with pytest.raises(ValueError, match="single-image SSIM"):
+        render_until(scene, Scorer(create_model("patch_cnn")), 0.02, 1, sure=True, warmup=False)
 
 
 def test_render_until_probes_beyond_the_scorers_range(scene, reference):

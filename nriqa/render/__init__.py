@@ -50,6 +50,7 @@ _EXPORTS = {
     "allocate_samples": "placement",
     "StopRule": "stop",
     "TargetScore": "stop",
+    "SureOfTarget": "stop",
     "TimeBudget": "stop",
     "SppBudget": "stop",
     "MaxSpp": "stop",

@@ -207,14 +207,15 @@ def method_summary(rows: list[dict], against: str = "peer") -> list[dict]:
 
 
 def stop_summary(rows: list[dict]) -> list[dict]:
-    """Per target and method over the reachable rows of :func:`stop_rows`: runs on target, mean true SSIM,
-    and the samples spent over those uniform needs (geometric mean)."""
+    """Per target and method over the reachable rows of :func:`stop_rows`: runs on target and at or above it,
+    mean true SSIM, and the samples spent over those uniform needs (geometric mean)."""
     out = []
     for target, method in dict.fromkeys((r["target"], r["method"]) for r in rows):
         mine = [r for r in rows if (r["target"], r["method"]) == (target, method) and r["reachable"]]
         if not mine:
             continue
         hits, runs = (sum(int(r["on target"].split("/")[k]) for r in mine) for k in (0, 1))
+        above = sum(int(r["reached"].split("/")[0]) for r in mine)
         ratio = [r["spp"] / float(r["uniform needs"].lstrip("<>")) for r in mine]
         out.append(
             {
@@ -222,6 +223,7 @@ def stop_summary(rows: list[dict]) -> list[dict]:
                 "method": method,
                 "scenes": len(mine),
                 "runs on target": f"{hits}/{runs} ({100 * hits / runs:.0f} %)",
+                "runs at or above": f"{above}/{runs} ({100 * above / runs:.0f} %)",
                 "true SSIM (mean)": np.mean([r["true SSIM"] for r in mine]),
                 "spp / uniform needs (geometric mean)": float(np.exp(np.mean(np.log(ratio)))),
             }

@@ -155,6 +155,9 @@ class Rater:
         self.higher_is_better = scorer.higher_is_better if scorer is not None else True
         self.needs_twin = needs_twin(scorer)
         self.predicted: float | None = None
+        # the low end of the scorer's calibrated interval for ``predicted``: only where the prediction is the
+        # Scorer's own score of the image (not the error model's past ``map_spp``, not the halves')
+        self.low: float | None = None
 
     def beyond(self, spp: float) -> bool:
         """Whether an image of ``spp`` samples per pixel is past the scorer's range (never for a
@@ -181,9 +184,10 @@ class Rater:
             if scored:
                 result = self._rate_image(film)
                 self.predicted = result.score
+                self.low = None if self.needs_twin else getattr(result, "low", None)
                 self.model.add(result.map, film.count.copy())
         if beyond and self.model.noise is not None:
-            self.predicted = self.model.predict(film.count)
+            self.predicted, self.low = self.model.predict(film.count), None
         return scored, scored or beyond
 
     def _rate_image(self, film: Film):

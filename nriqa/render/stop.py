@@ -24,6 +24,7 @@ __all__ = [
     "Progress",
     "SppBudget",
     "StopRule",
+    "SureOfTarget",
     "TargetScore",
     "TimeBudget",
     "budgets",
@@ -99,6 +100,36 @@ class TargetScore(StopRule):
             return None
         spp = float(progress.film.spp)
         need = spp_to_reach(predicted, spp, self.target, progress.higher_is_better)
+        return None if need is None else max(need - spp, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class SureOfTarget(StopRule):
+    """The low end of the scorer's calibrated interval for a fresh score of the image reaches ``target``.
+
+    The interval (``ScoreResult.low``; :class:`~nriqa.inference.interval.ScoreInterval`) is two-sided at
+    the card's level, each side at half its miss rate: a 90 % interval's low end lies above the true mean
+    SSIM of about one image in twenty, on scenes like those it was calibrated on. A row whose prediction
+    has no low end (the error model's, past ``map_spp``; a two-buffer scorer's) never stops here.
+
+    Steps toward it as :class:`TargetScore` does, aiming the prediction at ``target`` plus the interval's
+    lower reach at the latest score.
+    """
+
+    target: float
+    name: ClassVar[str] = "sure"
+
+    def reached(self, progress: Progress) -> bool:
+        low = progress.row.get("low")
+        return progress.fresh and low is not None and low >= self.target
+
+    def spp_to_go(self, progress: Progress) -> float | None:
+        predicted, low = progress.row["predicted"], progress.row.get("low")
+        if not progress.fresh or predicted is None or low is None:
+            return None
+        spp = float(progress.film.spp)
+        aim = min(self.target + max(predicted - low, 0.0), 0.9999)
+        need = spp_to_reach(predicted, spp, aim, True)
         return None if need is None else max(need - spp, 0.0)
 
 
