@@ -256,3 +256,42 @@ def test_coverage_fit_writes_the_card_and_check_reads_it(tmp_path, capsys):
     assert coverage.main(["check", str(cal), "--predictor", "m", *weights, "--ldr"]) == 0
     assert coverage.main(["check", str(cal), "--predictor", "m", *weights]) == 2
     assert "has no score_interval;" in capsys.readouterr().err
+
+
+def test_ladder_stops_on_the_score_and_on_the_low_end(tmp_path, capsys):
+    # an interval 0.02 below and 0.01 above every score
+    iv = ScoreInterval(0.9, (0.0, 1.0), (-0.02,), (0.01,), (100,))
+    spp = [2, 4, 8, 16, 32]
+
+    def ladder(scene, variant, true, pred):
+        return [
+            {"scene": scene, "variant": variant, "algorithm": "path", "spp": str(n), "true": t, "mapped": p}
+            for n, t, p in zip(spp, true, pred)
+        ]
+
+    rows = (
+        # reads high: the score reaches 0.9 a rung before the truth (stops short); the low end on the truth's rung
+        ladder("a", 0, [0.80, 0.85, 0.90, 0.95, 0.97], [0.85, 0.91, 0.93, 0.96, 0.98])
+        # reads right: the score stops on the truth's rung, the low end one rung later
+        + ladder("b", 0, [0.80, 0.88, 0.91, 0.93, 0.95], [0.80, 0.88, 0.91, 0.93, 0.95])
+        # the truth never reaches 0.9: not counted
+        + ladder("c", 0, [0.50, 0.60, 0.70, 0.80, 0.85], [0.50, 0.60, 0.70, 0.80, 0.95])
+        # the same scene in another file is another ladder; its low end never reaches 0.9
+        + [dict(r, _file=1) for r in ladder("b", 0, [0.80, 0.85, 0.89, 0.90, 0.91], [0.8, 0.85, 0.89, 0.90, 0.91])]
+    )
+    table = {r["rule"]: r for r in coverage.ladder_stops(rows, iv, [0.9])}
+    score, low = table["score"], table["low end"]
+    assert score["ladders"] == low["ladders"] == 3
+    assert score["stopped"] == 3 and score["at or above"] == "2/3"
+    assert score["true at the stop"] == pytest.approx((0.85 + 0.91 + 0.90) / 3)
+    assert score["spp over the truth's"] == pytest.approx((0.5 * 1 * 1) ** (1 / 3))
+    assert low["stopped"] == 2 and low["at or above"] == "2/2"
+    assert low["true at the stop"] == pytest.approx((0.90 + 0.93) / 2)
+    assert low["spp over the truth's"] == pytest.approx((1 * 2) ** 0.5)
+    # the command, on a card's interval; bad targets are one line
+    cal = _images_csv(tmp_path / "cal.csv", 0)
+    assert coverage.main(["stops", str(cal), "--predictor", "m", "--weights", "unet_fast", "--out", str(tmp_path)]) == 0
+    assert [r["rule"] for r in csv.DictReader((tmp_path / "stops.csv").open())] == ["score", "low end"] * 3
+    capsys.readouterr()
+    assert coverage.main(["stops", str(cal), "--predictor", "m", "--weights", "unet_fast", "--targets", "0.9,1"]) == 2
+    assert "--targets" in capsys.readouterr().err

@@ -9,11 +9,13 @@ against ``true``). Three commands, one predictor at a time::
     python -m nriqa.eval.coverage check C/images.csv --predictor unet_fast --weights unet_fast --out reports/cov
     # leave one scene family out: fit on the others, cover it (the honest in-house figure)
     python -m nriqa.eval.coverage cv A/images.csv B/images.csv --predictor unet_fast
+    # along each ladder of renders, stop on the score or on the interval's low end: where does each end?
+    python -m nriqa.eval.coverage stops C/images.csv --predictor unet_fast --weights unet_fast --targets 0.9,0.95
 
 ``--exclude-scene`` drops a scene's rows (e.g. one whose reference is suspect). ``--ldr`` makes ``fit`` and
 ``check`` use the card's interval for LDR input (``score_interval_ldr``: fit it on rows of ``nriqa-evaluate
 --display ...`` runs), which the Scorer applies to images it takes as LDR. Tables are printed and,
-with ``--out``, written as ``coverage.{csv,md}``. Fitting and the interval itself:
+with ``--out``, written as ``coverage.{csv,md}`` (``stops.{csv,md}``). Fitting and the interval itself:
 :class:`nriqa.inference.interval.ScoreInterval`.
 """
 
@@ -33,6 +35,7 @@ from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table, write_csv
 
 COLUMNS = ["group", "n", "coverage", "below", "above", "width", "bias"]
+STOP_COLUMNS = ["target", "rule", "ladders", "stopped", "at or above", "true at the stop", "spp over the truth's"]
 
 
 class CoverageError(NriqaError):
@@ -122,6 +125,51 @@ def leave_one_out(rows: list[dict], **fit_kwargs) -> list[dict]:
     return table
 
 
+def ladder_stops(rows: list[dict], interval: ScoreInterval, targets: list[float]) -> list[dict]:
+    """Where a stop on the score, and one on the interval's low end, end along ladders of renders.
+
+    A ladder is the images of one (file, scene, variant, algorithm) of ``rows`` (one predictor; ``file``: the
+    ``_file`` key, if any) ordered by spp, as a render loop would meet them. Per target, over the ladders whose
+    true SSIM reaches it at some rung: the ``score`` rule stops at the first rung whose score reaches the target,
+    the ``low end`` rule (``render_until(sure=True)``) at the first whose interval's low end does. Per rule:
+    the ladders where it stops at all (``stopped``), those whose true SSIM at the stop is at or above the target,
+    its mean, and the geometric mean of the stop's spp over that of the first rung truly at the target.
+    """
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r.get("_file", 0), r["scene"], r["variant"], r.get("algorithm", "")), []).append(r)
+    table = []
+    for target in targets:
+        ends: dict[str, list[tuple[float, float]]] = {"score": [], "low end": []}
+        reach = 0
+        for rungs in groups.values():
+            rungs = sorted(rungs, key=lambda r: float(r["spp"]))
+            spp = np.array([float(r["spp"]) for r in rungs])
+            p, t = _arrays(rungs)
+            if not (t >= target).any():
+                continue
+            reach += 1
+            first_true = spp[np.argmax(t >= target)]
+            for rule, ok in (("score", p >= target), ("low end", interval(p)[0] >= target)):
+                if ok.any():
+                    k = int(np.argmax(ok))
+                    ends[rule].append((t[k], spp[k] / first_true))
+        for rule, got in ends.items():
+            true = np.array([g[0] for g in got])
+            table.append(
+                {
+                    "target": target,
+                    "rule": rule,
+                    "ladders": reach,
+                    "stopped": len(got),
+                    "at or above": f"{int((true >= target).sum())}/{len(got)}",
+                    "true at the stop": float(true.mean()) if got else math.nan,
+                    "spp over the truth's": float(np.exp(np.mean(np.log([g[1] for g in got])))) if got else math.nan,
+                }
+            )
+    return table
+
+
 def add_interval_ends(rows: list[dict], predictors: list, *, tonemapped: bool) -> None:
     """Give every row ``low`` and ``high``: the ends of its predictor's calibrated interval around ``mapped``.
 
@@ -166,14 +214,24 @@ def _card_key(args: argparse.Namespace) -> str:
     return "score_interval_ldr" if args.ldr else "score_interval"
 
 
-def _write(out: str | None, title: str, table: list[dict]) -> None:
-    print(markdown_table(table, COLUMNS), end="")
+def _write(out: str | None, title: str, table: list[dict], columns=COLUMNS, stem: str = "coverage") -> None:
+    print(markdown_table(table, columns), end="")
     if out:
         folder = Path(out)
         folder.mkdir(parents=True, exist_ok=True)
-        write_csv(folder / "coverage.csv", table, COLUMNS)
-        write_text_atomic(folder / "coverage.md", f"# {title}\n\n" + markdown_table(table, COLUMNS))
-        print(f"wrote {folder / 'coverage.md'}")
+        write_csv(folder / f"{stem}.csv", table, columns)
+        write_text_atomic(folder / f"{stem}.md", f"# {title}\n\n" + markdown_table(table, columns))
+        print(f"wrote {folder / f'{stem}.md'}")
+
+
+def _targets(text: str) -> list[float]:
+    try:
+        targets = [float(x) for x in text.split(",")]
+    except ValueError:
+        targets = []
+    if not targets or not all(0.0 < t < 1.0 for t in targets):
+        raise CoverageError(f"--targets must be SSIMs in (0, 1), comma-separated; got {text!r}")
+    return targets
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -183,6 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
         ("fit", "fit the interval; write it to a file (--out) or into a weights' card (--weights)"),
         ("check", "coverage of an interval (--interval FILE or the card of --weights) on the rows"),
         ("cv", "leave one scene out: fit on the others, cover it"),
+        ("stops", "along each ladder of renders, stop on the score or on the interval's low end; where they end"),
     ):
         p = sub.add_parser(name, help=text)
         p.add_argument("images", nargs="+", help="images.csv files of nriqa-evaluate runs")
@@ -196,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--out", default=None, help="write the interval as JSON here")
         else:
             p.add_argument("--out", default=None, help="write coverage.{csv,md} into this folder")
-        if name in ("fit", "check"):
+        if name in ("fit", "check", "stops"):
             p.add_argument("--weights", default=None, help="shipped weights whose card holds (or gets) the interval")
             p.add_argument("--dir", default=None, help="folder of the weights (default: the shipped ones)")
             p.add_argument(
@@ -204,8 +263,10 @@ def build_parser() -> argparse.ArgumentParser:
                 action="store_true",
                 help="the card's interval for LDR input (score_interval_ldr) instead of score_interval",
             )
-        if name == "check":
+        if name in ("check", "stops"):
             p.add_argument("--interval", default=None, help="a JSON file 'fit --out' wrote")
+        if name == "stops":
+            p.add_argument("--targets", default="0.9,0.95,0.98", help="target SSIMs, comma-separated")
     return ap
 
 
@@ -217,7 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        rows = select([r for f in args.images for r in read_rows(f)], args.predictor, args.exclude_scene)
+        rows = [dict(r, _file=i) for i, f in enumerate(args.images) for r in read_rows(f)]
+        rows = select(rows, args.predictor, args.exclude_scene)
         if args.cmd == "fit":
             if not args.out and not args.weights:
                 raise CoverageError("say where the interval goes: --out FILE.json or --weights NAME")
@@ -230,10 +292,17 @@ def main(argv: list[str] | None = None) -> int:
             if args.weights:
                 print(f"wrote {update_card(args.weights, {_card_key(args): entry}, args.dir)}")
             print(json.dumps(entry))
-        elif args.cmd == "check":
+        elif args.cmd in ("check", "stops"):
             if bool(args.interval) == bool(args.weights):
                 raise CoverageError("give the interval to check: --interval FILE.json or --weights NAME (one)")
-            _write(args.out, f"Coverage of {args.predictor}'s score interval", check(rows, _load_interval(args)))
+            if args.cmd == "check":
+                title = f"Coverage of {args.predictor}'s score interval"
+                _write(args.out, title, check(rows, _load_interval(args)))
+            else:
+                targets = _targets(args.targets)
+                title = f"Stops along ladders: {args.predictor}'s score, and its interval's low end"
+                table = ladder_stops(rows, _load_interval(args), targets)
+                _write(args.out, title, table, STOP_COLUMNS, "stops")
         else:
             table = leave_one_out(rows, level=args.level, min_count=args.min_count, edges=EDGES)
             _write(args.out, f"Coverage of {args.predictor}'s score interval, each scene held out", table)
