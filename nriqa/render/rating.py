@@ -1,10 +1,10 @@
 """What the scorer rates in a render loop, and when: the image, a fresh probe, or nothing.
 
-A scorer is only right on images like those it learnt from: the shipped models learnt from
-renders of at most 64 samples per pixel (128 in the door scene), and beyond that their maps mark
-edges rather than noise. So once the image passes ``map_spp`` samples per pixel, a map comes from a
-probe: a fresh uniform step of ``probe_spp`` samples, rated alone and folded into the image like
-any other samples; the image's predicted score is then the error model's at its counts
+A scorer is only right on images like those it learnt from: ``fcnn_fast`` learnt from renders of at
+most 64 samples per pixel (128 in the door scene), and beyond that its maps mark edges rather than
+noise (the default ``unet_fast`` learnt up to 1024). So once the image passes ``map_spp`` samples
+per pixel, a map comes from a probe: a fresh uniform step of ``probe_spp`` samples, rated alone and
+folded into the image like any other samples; the image's predicted score is then the error model's at its counts
 (:class:`~nriqa.render.error_model.ErrorModel`), updated at every step.
 
 A two-buffer scorer (``needs_twin`` true) rates an image together with an independent twin. A loop
