@@ -19,7 +19,7 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
    methods interleaved per seed: error ratio to uniform and equal-quality speed-up (:mod:`nriqa.render.compare`).
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
    (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families), with
-   ``--sure`` the scorer stopping on its calibrated interval's low end (``sure (low end)``, nothing tuned),
+   ``--sure`` the scorers stopping on their calibrated interval's low end (``sure (low end)``, nothing tuned),
    and ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
 3. **half_cost** -- a ``PixelRenderer`` call, the same with the even sums, two calls of half the samples.
 
@@ -38,7 +38,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from render_compare_stop import FAMILIES, STOP_GRID, STOP_MARGINS, SURE, half_cost, stop_section  # noqa: E402
+from render_compare_stop import (  # noqa: E402
+    FAMILIES,
+    STOP_GRID,
+    STOP_MARGINS,
+    SURE,
+    SURE_TWIN,
+    half_cost,
+    stop_section,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -129,6 +137,8 @@ def load_scorers(args) -> dict[str, object]:
         twin = load_scorer("--twin-scorer", args.twin_scorer)
         if not getattr(twin, "needs_twin", False):
             fail(f"--twin-scorer {args.twin_scorer} is no two-buffer scorer (needs_twin is false)")
+        if args.sure and getattr(twin, "interval", None) is None:
+            fail(f"--sure: --twin-scorer {args.twin_scorer} has no calibrated interval")
         scorers["adaptive (two-buffer)"] = twin
     return scorers
 
@@ -237,7 +247,7 @@ def plot(et_rows, stop_rows, args) -> None:
     axes[0].set(ylabel="(1 - SSIM) / uniform's", title=f"equal time, {args.budget:g} s per image")
     names = list(dict.fromkeys(r["scene"] for r in stop_rows))
     axes[1].axhspan(*WINDOW, color="0.9", zorder=0)
-    markers = {"learned": "o", "two-buffer": "s", "peer": "^", SURE: "v"}
+    markers = {"learned": "o", "two-buffer": "s", "peer": "^", SURE: "v", SURE_TWIN: "D"}
     for r in stop_rows:
         k = args.targets.index(r["target"])
         axes[1].scatter(
@@ -308,7 +318,8 @@ def parse(argv):
     ap.add_argument(
         "--sure",
         action="store_true",
-        help="stop: also --scorer stopping when its calibrated interval's low end reaches the target (sure=True)",
+        help="stop: also --scorer (and --twin-scorer) stopping when the calibrated interval's low end reaches the "
+        "target (sure=True)",
     )
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
     ap.add_argument("--half-repeats", type=int, default=5)

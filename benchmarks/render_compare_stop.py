@@ -18,6 +18,7 @@ STOP_GRID = tuple(0.4 * 0.5 ** (k / 2) for k in range(12))  # stop: 0.4 down to 
 STOP_MARGINS = (0.0, 0.005, 0.01, 0.015)  # the learned stop rules stop at predicted >= target + margin
 LEARNED = (("learned", "adaptive"), ("two-buffer", "adaptive (two-buffer)"))  # stop method -> scorer key
 SURE = "sure (low end)"  # --sure: the single-image scorer, stopping when its interval's low end reaches the target
+SURE_TWIN = "sure, two-buffer (low end)"  # --sure with --twin-scorer: the same for the two-buffer scorer's halves
 
 
 def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
@@ -125,9 +126,11 @@ def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
                         learned_stop(sc, ref, by, t, m, s, args)
                     )
             if args.sure:
-                fns[SURE] = lambda s, sc=scene, ref=reference, by=scorers["adaptive"], t=target: learned_stop(
-                    sc, ref, by, t, 0.0, s, args, sure=True
-                )
+                for label, key in ((SURE, "adaptive"), (SURE_TWIN, "adaptive (two-buffer)")):
+                    if key in scorers:
+                        fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target: learned_stop(
+                            sc, ref, by, t, 0.0, s, args, sure=True
+                        )
             for seed in args.stop_seeds:
                 for method, fn in fns.items():
                     end = fn(seed)  # the run's last row
@@ -196,7 +199,8 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
             + "):\n",
             markdown_table(margin_rows, ["method", "margin", "tuning runs", "on target"]),
             f"'{SURE}' (--sure): the single-image scorer stops at the first low end of its calibrated interval at or "
-            "above the target (no margin, nothing tuned; it rates the image itself at every count).\n"
+            "above the target (no margin, nothing tuned; it rates the image itself at every count); "
+            f"'{SURE_TWIN}': the two-buffer scorer likewise, its halves' interval carried to the whole image.\n"
             if args.sure
             else "",
             markdown_table(

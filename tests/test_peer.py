@@ -23,7 +23,7 @@ from nriqa.render import (
     split_halves,
 )
 from nriqa.render.peer import unconverged_pixels
-from nriqa.render.rating import at_full_samples
+from nriqa.render.rating import at_full_samples, rate_halves
 from nriqa.render.stop import Progress, StopRule
 
 SIZE = 16
@@ -196,6 +196,22 @@ def test_at_full_samples_on_known_values():
     expected = [0, 0.4, 2 / 3, 1.8 / 1.9, 1, 1, 0]  # 2q / (1 + q) of q clipped to [0, 1]
     np.testing.assert_allclose(at_full_samples(q, np.full(q.shape, 0.5)), expected, rtol=1e-6)
     np.testing.assert_allclose(at_full_samples(q[:5], np.ones(5)), q[:5], rtol=1e-6)  # all the samples: unchanged
+
+
+def test_the_halves_interval_is_carried_to_the_whole_image():
+    from nriqa.inference.scorer import ScoreResult
+
+    def twin_scorer(first, *, twin, hdr=None, low=0.76):
+        return ScoreResult(np.full((4, 4), 0.8, np.float32), 0.8, "ssim", True, low, 0.83 if low else None)
+
+    share = np.full((4, 4), 0.5)
+    rated = rate_halves(twin_scorer, np.zeros((4, 4, 3)), second=np.zeros((4, 4, 3)), share=share)
+    assert rated.score == pytest.approx(1.6 / 1.8)  # 2q / (1 + q)
+    assert rated.low == pytest.approx(2 * 0.76 / 1.76)  # the low end by the same law (a flat map: exactly)
+    none = rate_halves(
+        lambda f, **kw: twin_scorer(f, low=None, **kw), np.zeros((4, 4, 3)), second=np.zeros((4, 4, 3)), share=share
+    )
+    assert none.low is None
 
 
 def test_a_half_rated_against_the_other_carries_to_the_whole_image():

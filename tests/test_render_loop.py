@@ -178,10 +178,10 @@ def test_render_until_sure_needs_a_calibrated_single_image_ssim_scorer(scene, sc
         render_until(scene, CalibratedOracle(reference, 0.1), None, 1, sure=True, warmup=False)
     with pytest.raises(ValueError, match="calibrated interval"):
         render_until(scene, scorer, 0.9, 1, sure=True, warmup=False)  # untrained, no card: no interval
-    with pytest.raises(ValueError, match="single-image SSIM"):
+    with pytest.raises(ValueError, match="an SSIM scorer"):
         render_until(scene, None, 0.9, 1, sure=True, warmup=False)
     torch.manual_seed(0)
-    with pytest.raises(ValueError, match="single-image SSIM"):
+    with pytest.raises(ValueError, match="an SSIM scorer"):
         render_until(scene, Scorer(create_model("patch_cnn")), 0.02, 1, sure=True, warmup=False)
 
 

@@ -232,10 +232,12 @@ def render_until(
         seed: seed of the first step; step ``k`` uses ``seed + k``.
         sure: stop when the low end of the scorer's calibrated interval reaches ``target_score``
             instead of the score (:class:`~nriqa.render.stop.SureOfTarget`): the true mean SSIM is then
-            at or above the target about 19 times in 20 on scenes like the calibration's. Needs a
-            single-image SSIM :class:`~nriqa.inference.scorer.Scorer` with a calibrated interval (the
-            shipped ``unet_fast`` and ``fcnn_fast``), which then rates the image itself at every count
-            (``map_spp`` does not apply: the interval is calibrated on the Scorer's score of an image).
+            at or above the target about 19 times in 20 on scenes like the calibration's. Needs an SSIM
+            :class:`~nriqa.inference.scorer.Scorer` with a calibrated interval (the shipped ``unet_fast``,
+            ``fcnn_fast`` and ``dual_fast``). A single-image scorer then rates the image itself at every
+            count (``map_spp`` does not apply: the interval is calibrated on the Scorer's score of an
+            image); a two-buffer one rates the halves as always, its interval carried to the whole image
+            (:func:`~nriqa.render.rating.rate_halves`).
 
     Returns:
         ``(image, log)`` as for :func:`render_loop`; the last row's ``stop`` is ``"target"`` (``"sure"``
@@ -274,10 +276,9 @@ def _check_sure(scorer, target_score: float | None) -> None:
     """Raise a one-line ``ValueError`` unless ``sure=True`` can work with this scorer and target."""
     if target_score is None:
         raise ValueError("sure=True stops on a target: give target_score")
-    if scorer is None or needs_twin(scorer) or not scorer.higher_is_better:
+    if scorer is None or not scorer.higher_is_better:
         raise ValueError(
-            "sure=True needs a single-image SSIM scorer (not a two-buffer one, not the patch model's MAE); "
-            "e.g. Scorer.from_pretrained('unet_fast')"
+            "sure=True needs an SSIM scorer (not the patch model's MAE), e.g. Scorer.from_pretrained('unet_fast')"
         )
     if getattr(scorer, "interval", None) is None:
         raise ValueError(

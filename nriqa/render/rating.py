@@ -91,19 +91,30 @@ def spp_to_reach(score: float, spp: float, target: float, higher_is_better: bool
 
 @dataclasses.dataclass(frozen=True)
 class HalvesRating:
-    """A two-buffer scorer's map of a whole image, rated from its halves: ``map`` ``(H, W)``, ``score`` its mean."""
+    """A two-buffer scorer's map of a whole image, rated from its halves: ``map`` ``(H, W)``, ``score`` its mean;
+    ``low``: the low end of the scorer's calibrated interval carried to the whole image (``None`` without one)."""
 
     map: np.ndarray
     score: float
+    low: float | None = None
 
 
 def rate_halves(scorer, first: np.ndarray, *, second: np.ndarray, share: np.ndarray, **kwargs) -> HalvesRating:
     """Rate ``first`` with ``second`` as its twin, carried to the whole image by :func:`at_full_samples`.
 
-    ``kwargs`` (e.g. ``hdr=True``) go to the scorer.
+    Where the scorer gives the first half's interval (``low``; it was calibrated on an image and its twin of
+    equal samples, as the halves are), its low end is carried by the same law, at the mean share, and kept
+    as an offset below the whole image's score. ``kwargs`` (e.g. ``hdr=True``) go to the scorer.
     """
-    qmap = at_full_samples(scorer(first, twin=second, **kwargs).map, share)
-    return HalvesRating(qmap, float(qmap.mean()))
+    result = scorer(first, twin=second, **kwargs)
+    qmap = at_full_samples(result.map, share)
+    score = float(qmap.mean())
+    low = getattr(result, "low", None)
+    if low is not None:
+        k = np.mean(share)
+        reach = float(at_full_samples(result.score, k)) - float(at_full_samples(low, k))
+        low = score - max(reach, 0.0)
+    return HalvesRating(qmap, score, low)
 
 
 def halves_scorer(scorer, second: np.ndarray, share: np.ndarray):
@@ -156,7 +167,7 @@ class Rater:
         self.needs_twin = needs_twin(scorer)
         self.predicted: float | None = None
         # the low end of the scorer's calibrated interval for ``predicted``: only where the prediction is the
-        # Scorer's own score of the image (not the error model's past ``map_spp``, not the halves')
+        # Scorer's score of the image or of its halves (not the error model's past ``map_spp``)
         self.low: float | None = None
 
     def beyond(self, spp: float) -> bool:
@@ -184,7 +195,7 @@ class Rater:
             if scored:
                 result = self._rate_image(film)
                 self.predicted = result.score
-                self.low = None if self.needs_twin else getattr(result, "low", None)
+                self.low = getattr(result, "low", None)
                 self.model.add(result.map, film.count.copy())
         if beyond and self.model.noise is not None:
             self.predicted, self.low = self.model.predict(film.count), None

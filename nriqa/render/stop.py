@@ -110,7 +110,7 @@ class SureOfTarget(StopRule):
     The interval (``ScoreResult.low``; :class:`~nriqa.inference.interval.ScoreInterval`) is two-sided at
     the card's level, each side at half its miss rate: a 90 % interval's low end lies above the true mean
     SSIM of about one image in twenty, on scenes like those it was calibrated on. A row whose prediction
-    has no low end (the error model's, past ``map_spp``; a two-buffer scorer's) never stops here.
+    has no low end (the error model's, past ``map_spp``; a scorer without a calibration) never stops here.
 
     Steps toward it as :class:`TargetScore` does, aiming the prediction at ``target`` plus the interval's
     lower reach at the latest score.
