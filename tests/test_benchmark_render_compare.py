@@ -144,7 +144,7 @@ def test_overlap_adds_the_blended_map_to_the_equal_time_methods(tmp_path):
 def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     """``--skip equal_time``: no clock, so no quiet machine needed; uniform's curves are measured for it."""
     out = tmp_path / "out"
-    run_quick(out, "--skip", "equal_time,half_cost", "--map-spp", "none", "--sure")
+    run_quick(out, "--skip", "equal_time,half_cost", "--map-spp", "none", "--sure", "--twin-scorer", "dual_fast")
     table = (out / "render_compare.md").read_text()
     assert "## Early stopping" in table and "## Equal time" not in table and "nan" not in table.lower()
     assert not (out / "render_compare.csv").exists()
@@ -158,6 +158,9 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     assert runs["stop_margins"]["learned"] in (0.0, 0.01) and "Learned stop rules" in table
     assert {r["margin"] for r in runs["stop_margin_tuning"]} == {0.0, 0.01}
     # --sure: the shipped scorer stopping on its interval's low end, nothing tuned; runs end on it or at max_spp
-    sure = [r for r in stops if r["method"] == "sure (low end)"]
-    assert len(sure) == len(stops) // 3 and {r["method"] for r in stops} == {"peer", "learned", "sure (low end)"}
-    assert all(set(r["stops"].split("/")) <= {"sure", "max_spp"} for r in sure) and "runs at or above" in table
+    # and the two-buffer scorer likewise (its halves' interval carried to the whole image)
+    methods = ["peer", "learned", "two-buffer", "sure (low end)", "sure, two-buffer (low end)"]
+    assert {r["method"] for r in stops} == set(methods)
+    sure = [r for r in stops if r["method"].startswith("sure")]
+    assert len(sure) == 2 * len(stops) // 5 and "runs at or above" in table
+    assert all(set(r["stops"].split("/")) <= {"sure", "max_spp"} for r in sure)
