@@ -146,7 +146,7 @@ def render_loop(
         predicted, scored, true, low`` (``spp`` the mean over pixels; ``predicted`` the latest
         prediction, ``scored`` whether this step ran the scorer; ``predicted``/``true`` are
         ``None`` without scorer/reference; ``low`` the low end of the scorer's calibrated interval
-        where ``predicted`` is its score of the image itself, else ``None``); the last row's ``stop``
+        where ``predicted`` is its score of the image or its halves, else ``None``); the last row's ``stop``
         is the rule's name and, for films with per-pixel counts, its ``spp_map`` the ``(H, W)`` counts.
     """
     check_overhead(max_overhead)
