@@ -96,15 +96,20 @@ class TargetScore(StopRule):
 
     def spp_to_go(self, progress: Progress) -> float | None:
         predicted = progress.row["predicted"]
-        if not progress.fresh or predicted is None:
+        aim = self.aim(progress)
+        if not progress.fresh or predicted is None or aim is None:
             return None
         spp = float(progress.film.spp)
-        need = spp_to_reach(predicted, spp, self.target, progress.higher_is_better)
+        need = spp_to_reach(predicted, spp, aim, progress.higher_is_better)
         return None if need is None else max(need - spp, 0.0)
+
+    def aim(self, progress: Progress) -> float | None:
+        """The score the next step should bring the prediction to (``None``: no aim from this row)."""
+        return self.target
 
 
 @dataclasses.dataclass(frozen=True)
-class SureOfTarget(StopRule):
+class SureOfTarget(TargetScore):
     """The low end of the scorer's calibrated interval for a fresh score of the image reaches ``target``.
 
     The interval (``ScoreResult.low``; :class:`~nriqa.inference.interval.ScoreInterval`) is two-sided at
@@ -113,24 +118,20 @@ class SureOfTarget(StopRule):
     has no low end (the error model's, past ``map_spp``; a scorer without a calibration) never stops here.
 
     Steps toward it as :class:`TargetScore` does, aiming the prediction at ``target`` plus the interval's
-    lower reach at the latest score.
+    lower reach at the latest score (:meth:`aim`).
     """
 
-    target: float
     name: ClassVar[str] = "sure"
 
     def reached(self, progress: Progress) -> bool:
         low = progress.row.get("low")
         return progress.fresh and low is not None and low >= self.target
 
-    def spp_to_go(self, progress: Progress) -> float | None:
+    def aim(self, progress: Progress) -> float | None:
         predicted, low = progress.row["predicted"], progress.row.get("low")
-        if not progress.fresh or predicted is None or low is None:
+        if predicted is None or low is None:
             return None
-        spp = float(progress.film.spp)
-        aim = min(self.target + max(predicted - low, 0.0), 0.9999)
-        need = spp_to_reach(predicted, spp, aim, True)
-        return None if need is None else max(need - spp, 0.0)
+        return min(self.target + max(predicted - low, 0.0), 0.9999)
 
 
 @dataclasses.dataclass(frozen=True)
