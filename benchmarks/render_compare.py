@@ -4,6 +4,7 @@
         [--scenes caustic,...,cbox_glass] [--scene-dir ../shared/external/scenes]
         [--scorer NAME|CKPT] [--overlap] [--twin-scorer NAME|CKPT] [--map-spp 64|none] [--sure]
         [--targets 0.9,0.95,0.98 --stop-max-spp 512 --stop-margins 0,0.005,0.01,0.015]
+        [--stop-methods peer,learned,two-buffer,sure,sure-twin,adaptive-sure,adaptive-sure-twin]
         [--skip equal_time,stop,half_cost] [--quick]
 
 Scenes: the eight data_gen families (``loop_scene``; the training scenes) and the three Cornell boxes of
@@ -20,7 +21,9 @@ renders (cached under ``<out>/references``). Sections, written to ``<out>/render
 2. **stop** -- per target SSIM, no clock: the true SSIM and samples where ``render_until`` with the scorer
    (``learned``, ``two-buffer``; at target + a margin of ``--stop-margins`` tuned on the families), with
    ``--sure`` the scorers stopping on their calibrated interval's low end (``sure (low end)``, nothing tuned),
-   and ``render_peer`` (threshold per target tuned on the families) stop. ``--skip equal_time``: this alone.
+   and ``render_peer`` (threshold per target tuned on the families) stop; ``--stop-methods`` picks among these
+   and the same sure stop in ``render_adaptive`` (``adaptive-sure``, ``adaptive-sure-twin``: samples placed by
+   the scorer's map). ``--skip equal_time``: this alone.
 3. **half_cost** -- a ``PixelRenderer`` call, the same with the even sums, two calls of half the samples.
 
 The guide: ``docs/render_compare.md``.
@@ -39,9 +42,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from render_compare_stop import (  # noqa: E402
+    ADAPTIVE_SURE,
+    ADAPTIVE_SURE_TWIN,
     FAMILIES,
     STOP_GRID,
     STOP_MARGINS,
+    STOP_METHODS,
     SURE,
     SURE_TWIN,
     half_cost,
@@ -63,6 +69,7 @@ CBOX = {
 # A loop's k-th render call uses seed + k: runs' seeds lie this far apart so that no two runs share samples.
 SEED_SPACING = 10_000
 PEER_GRID = (0.2, 0.1, 0.05, 0.025, 0.0125)  # equal time: thresholds tried on the families
+DEFAULT_STOP_METHODS = ("peer", "learned", "two-buffer")  # two-buffer: only with --twin-scorer
 LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read from its signature in main
 
 
@@ -126,8 +133,9 @@ def load_scorers(args) -> dict[str, object]:
     single = load_scorer("--scorer", args.scorer)
     if getattr(single, "needs_twin", False):
         fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
-    if args.sure and getattr(single, "interval", None) is None:
-        fail(f"--sure: --scorer {args.scorer} has no calibrated interval (shipped weights carry one on their card)")
+    sure = {by: k for k in args.stop_methods if "sure" in k for by in [STOP_METHODS[k][1]]}  # scorer key -> method
+    if "adaptive" in sure and getattr(single, "interval", None) is None:
+        fail(f"{sure['adaptive']}: --scorer {args.scorer} has no calibrated interval (shipped weights carry one)")
     scorers = {"adaptive": single}
     if args.overlap:
         if not single.window:
@@ -137,8 +145,8 @@ def load_scorers(args) -> dict[str, object]:
         twin = load_scorer("--twin-scorer", args.twin_scorer)
         if not getattr(twin, "needs_twin", False):
             fail(f"--twin-scorer {args.twin_scorer} is no two-buffer scorer (needs_twin is false)")
-        if args.sure and getattr(twin, "interval", None) is None:
-            fail(f"--sure: --twin-scorer {args.twin_scorer} has no calibrated interval")
+        if "adaptive (two-buffer)" in sure and getattr(twin, "interval", None) is None:
+            fail(f"{sure['adaptive (two-buffer)']}: --twin-scorer {args.twin_scorer} has no calibrated interval")
         scorers["adaptive (two-buffer)"] = twin
     return scorers
 
@@ -248,6 +256,7 @@ def plot(et_rows, stop_rows, args) -> None:
     names = list(dict.fromkeys(r["scene"] for r in stop_rows))
     axes[1].axhspan(*WINDOW, color="0.9", zorder=0)
     markers = {"learned": "o", "two-buffer": "s", "peer": "^", SURE: "v", SURE_TWIN: "D"}
+    markers |= {ADAPTIVE_SURE: "P", ADAPTIVE_SURE_TWIN: "X"}
     for r in stop_rows:
         k = args.targets.index(r["target"])
         axes[1].scatter(
@@ -319,7 +328,12 @@ def parse(argv):
         "--sure",
         action="store_true",
         help="stop: also --scorer (and --twin-scorer) stopping when the calibrated interval's low end reaches the "
-        "target (sure=True)",
+        "target (sure=True); the same as adding sure,sure-twin to --stop-methods",
+    )
+    ap.add_argument(
+        "--stop-methods",
+        help=f"stop: the methods to run, comma-separated, of {','.join(STOP_METHODS)} (default: "
+        f"{','.join(DEFAULT_STOP_METHODS)}; the two-buffer ones need --twin-scorer; adaptive-*: render_adaptive)",
     )
     ap.add_argument("--skip", default="", help="comma-separated: equal_time,stop,half_cost")
     ap.add_argument("--half-repeats", type=int, default=5)
@@ -351,9 +365,24 @@ def parse(argv):
         args.stop_margins = args.stop_margins[::2]
     if not args.stop_margins or not all(0 <= m < 0.1 for m in args.stop_margins):
         fail(f"--stop-margins must lie in [0, 0.1), got {args.stop_margins}")
+    args.stop_methods = stop_methods(args)
     if args.map_spp not in (None, LOOP_DEFAULT) and not args.map_spp >= 0:
         fail(f"--map-spp must be >= 0 or 'none', got {args.map_spp}")
     return args
+
+
+def stop_methods(args) -> list[str]:
+    """``--stop-methods`` (with ``--sure``'s two), checked: keys of ``STOP_METHODS``, in the order given."""
+    keys = args.stop_methods.split(",") if args.stop_methods else list(DEFAULT_STOP_METHODS)
+    if args.sure:
+        keys += ["sure", "sure-twin"]
+    unknown = [k for k in keys if k not in STOP_METHODS]
+    if unknown:
+        fail(f"--stop-methods: unknown method(s) {', '.join(unknown)}; choose from {', '.join(STOP_METHODS)}")
+    twin = [k for k in keys if STOP_METHODS[k][1] == "adaptive (two-buffer)"]
+    if args.stop_methods and twin and not args.twin_scorer:
+        fail(f"--stop-methods {', '.join(twin)} need(s) a two-buffer scorer: give --twin-scorer dual_fast")
+    return list(dict.fromkeys(keys))
 
 
 def equal_time_section(scenes, scorers, args) -> tuple[str, list[dict], dict, dict]:

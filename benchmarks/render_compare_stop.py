@@ -16,9 +16,20 @@ from nriqa.io.tables import markdown_table, write_csv
 FAMILIES = ("caustic", "cornell", "door", "envmap", "glossy", "medium", "shadows", "textured")
 STOP_GRID = tuple(0.4 * 0.5 ** (k / 2) for k in range(12))  # stop: 0.4 down to 0.009, steps of sqrt(2)
 STOP_MARGINS = (0.0, 0.005, 0.01, 0.015)  # the learned stop rules stop at predicted >= target + margin
-LEARNED = (("learned", "adaptive"), ("two-buffer", "adaptive (two-buffer)"))  # stop method -> scorer key
 SURE = "sure (low end)"  # --sure: the single-image scorer, stopping when its interval's low end reaches the target
 SURE_TWIN = "sure, two-buffer (low end)"  # --sure with --twin-scorer: the same for the two-buffer scorer's halves
+ADAPTIVE_SURE = "adaptive, sure (low end)"  # render_adaptive: samples placed by the map, stopping as SURE does
+ADAPTIVE_SURE_TWIN = "adaptive, sure, two-buffer (low end)"  # the same with the two-buffer scorer
+# --stop-methods: key -> (method label, scorer key or None); the sure ones stop on the interval, nothing tuned
+STOP_METHODS = {
+    "peer": ("peer", None),
+    "learned": ("learned", "adaptive"),
+    "two-buffer": ("two-buffer", "adaptive (two-buffer)"),
+    "sure": (SURE, "adaptive"),
+    "sure-twin": (SURE_TWIN, "adaptive (two-buffer)"),
+    "adaptive-sure": (ADAPTIVE_SURE, "adaptive"),
+    "adaptive-sure-twin": (ADAPTIVE_SURE_TWIN, "adaptive (two-buffer)"),
+}
 
 
 def tune_stop(scenes, curves, args) -> tuple[dict[float, float], list[dict]]:
@@ -73,6 +84,26 @@ def learned_stop(scene, reference, scorer, target: float, margin: float, seed: i
     )[1][-1]
 
 
+def adaptive_sure_stop(scene, reference, scorer, target: float, seed: int, args) -> dict:
+    """The last row of ``render_adaptive`` (samples placed by ``scorer``'s map, at most ``--stop-max-spp``) stopping at
+    the first low end of ``scorer``'s calibrated interval >= ``target``, scoring every step."""
+    from nriqa.render import render_adaptive
+
+    return render_adaptive(
+        scene,
+        scorer,
+        total_spp=args.stop_max_spp,
+        initial_spp=args.spp_per_step,
+        spp_per_step=args.spp_per_step,
+        max_overhead=None,
+        reference=reference,
+        seed=seed,
+        warmup=False,
+        target_score=target,
+        sure=True,
+    )[1][-1]
+
+
 def tune_margins(scenes, scorers, curves, args) -> tuple[dict[str, float], list[dict]]:
     """Per learned stop rule, the margin of ``--stop-margins`` on target most often (ties: the smaller) over
     the families and targets uniform reaches within ``--stop-max-spp``, on the tuning seeds: the same
@@ -81,7 +112,8 @@ def tune_margins(scenes, scorers, curves, args) -> tuple[dict[str, float], list[
     from nriqa.render.compare import on_target, uniform_reaches
 
     chosen, rows = {}, []
-    for method, key in [(m, k) for m, k in LEARNED if k in scorers]:
+    tuned = [STOP_METHODS[m] for m in ("learned", "two-buffer") if m in args.stop_methods]
+    for method, key in [(m, k) for m, k in tuned if k in scorers]:
         hits = {}
         for margin in args.stop_margins:
             ends = [
@@ -99,38 +131,44 @@ def tune_margins(scenes, scorers, curves, args) -> tuple[dict[str, float], list[
     return chosen, rows
 
 
-def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
-    """Early stopping per scene, target and seed: the learned stop rule(s) (at target + their margin) and
-    the peer's threshold rule."""
+def stop_fns(scene, reference, target: float, scorers, thresholds, margins, args) -> dict:
+    """The early-stopping methods of ``--stop-methods`` for one scene and target: label -> ``fn(seed) -> last row``."""
     from nriqa.render import render_peer
 
+    fns = {}
+    for key in args.stop_methods:
+        label, by = STOP_METHODS[key]
+        if by is not None and by not in scorers:
+            continue  # a two-buffer method without --twin-scorer
+        if key == "peer":
+            fns[label] = lambda s, t=thresholds[target]: render_peer(
+                scene,
+                t,
+                max_spp=args.stop_max_spp,
+                min_spp=args.min_spp,
+                initial_spp=args.spp_per_step,
+                spp_per_step=args.spp_per_step,
+                reference=reference,
+                seed=s,
+                warmup=False,
+            )[1][-1]
+        elif key in ("learned", "two-buffer"):
+            fns[label] = lambda s, sc=scorers[by], m=margins[label]: learned_stop(
+                scene, reference, sc, target, m, s, args
+            )
+        elif key.startswith("adaptive"):
+            fns[label] = lambda s, sc=scorers[by]: adaptive_sure_stop(scene, reference, sc, target, s, args)
+        else:
+            fns[label] = lambda s, sc=scorers[by]: learned_stop(scene, reference, sc, target, 0.0, s, args, sure=True)
+    return fns
+
+
+def run_stop(scenes, scorers, thresholds, margins, args) -> list[dict]:
+    """Early stopping per scene, target and seed: each method of ``--stop-methods`` (:func:`stop_fns`)."""
     records = []
     for name, (scene, reference, _) in scenes.items():
         for target in args.targets:
-            fns = {
-                "peer": lambda s, sc=scene, ref=reference, t=thresholds[target]: render_peer(
-                    sc,
-                    t,
-                    max_spp=args.stop_max_spp,
-                    min_spp=args.min_spp,
-                    initial_spp=args.spp_per_step,
-                    spp_per_step=args.spp_per_step,
-                    reference=ref,
-                    seed=s,
-                    warmup=False,
-                )[1][-1]
-            }
-            for label, key in LEARNED:
-                if key in scorers:
-                    fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target, m=margins[label]: (
-                        learned_stop(sc, ref, by, t, m, s, args)
-                    )
-            if args.sure:
-                for label, key in ((SURE, "adaptive"), (SURE_TWIN, "adaptive (two-buffer)")):
-                    if key in scorers:
-                        fns[label] = lambda s, sc=scene, ref=reference, by=scorers[key], t=target: learned_stop(
-                            sc, ref, by, t, 0.0, s, args, sure=True
-                        )
+            fns = stop_fns(scene, reference, target, scorers, thresholds, margins, args)
             for seed in args.stop_seeds:
                 for method, fn in fns.items():
                     end = fn(seed)  # the run's last row
@@ -183,7 +221,7 @@ def half_cost(scenes, args) -> list[dict]:
 def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
     from nriqa.render.compare import stop_rows, stop_summary
 
-    thresholds, tuning = tune_stop(scenes, curves, args)
+    thresholds, tuning = tune_stop(scenes, curves, args) if "peer" in args.stop_methods else ({}, [])
     margins, margin_rows = tune_margins(scenes, scorers, curves, args)
     records = run_stop(scenes, scorers, thresholds, margins, args)
     rows = stop_rows(records, curves, args.stop_max_spp)
@@ -191,17 +229,24 @@ def stop_section(scenes, scorers, curves, args) -> tuple[str, list[dict], dict]:
     text = "\n".join(
         [
             f"## Early stopping (no clock; at most {args.stop_max_spp} spp)\n",
-            "Peer thresholds per target, tuned on the families ('on target': share of the tuning runs):\n",
-            markdown_table(tuning, list(tuning[0])),
+            f"Methods: {', '.join(args.stop_methods)}.\n",
+            "Peer thresholds per target, tuned on the families ('on target': share of the tuning runs):\n"
+            if tuning
+            else "",
+            markdown_table(tuning, list(tuning[0])) if tuning else "",
             "Learned stop rules: stop at the first predicted SSIM >= target + margin, the margin tuned on the "
             "families and the same seeds (runs on target per margin; chosen: "
             + ", ".join(f"{k} {v:g}" for k, v in margins.items())
-            + "):\n",
-            markdown_table(margin_rows, ["method", "margin", "tuning runs", "on target"]),
-            f"'{SURE}' (--sure): the single-image scorer stops at the first low end of its calibrated interval at or "
+            + "):\n"
+            if margin_rows
+            else "",
+            markdown_table(margin_rows, ["method", "margin", "tuning runs", "on target"]) if margin_rows else "",
+            f"'{SURE}': the single-image scorer stops at the first low end of its calibrated interval at or "
             "above the target (no margin, nothing tuned; it rates the image itself at every count); "
-            f"'{SURE_TWIN}': the two-buffer scorer likewise, its halves' interval carried to the whole image.\n"
-            if args.sure
+            f"'{SURE_TWIN}': the two-buffer scorer likewise, its halves' interval carried to the whole image; "
+            f"'{ADAPTIVE_SURE}', '{ADAPTIVE_SURE_TWIN}': the same stop in render_adaptive, whose steps go where "
+            "the scorer's map expects the most error (half of each step spread evenly).\n"
+            if any("sure" in key for key in args.stop_methods)
             else "",
             markdown_table(
                 rows,

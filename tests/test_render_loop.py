@@ -284,6 +284,32 @@ def test_render_adaptive_with_all_tiles_is_uniform(scene, scorer, reference):
     assert log[-1]["true"] > log[0]["true"]
 
 
+def test_render_adaptive_stops_at_a_target_or_when_sure(scene, reference):
+    # Per tile (scalar_rgb): the plain target ends at the first score at the target, the sure rule at the
+    # first low end there, later; the budget still ends a run whose target is never read.
+    oracle = CalibratedOracle(reference, 0.1)
+    kwargs = dict(total_spp=256, initial_spp=2, spp_per_step=1, tile=16, fraction=0.25, reference=reference)
+    _, plain = render_adaptive(scene, oracle, target_score=0.8, max_overhead=None, **kwargs)
+    _, sure = render_adaptive(scene, oracle, target_score=0.8, sure=True, max_overhead=None, **kwargs)
+    assert plain[-1]["stop"] == "target" and plain[-1]["predicted"] >= 0.8
+    assert all(r["predicted"] < 0.8 for r in plain[:-1])
+    assert sure[-1]["stop"] == "sure" and sure[-1]["low"] >= 0.8 and all(r["low"] < 0.8 for r in sure[:-1])
+    assert all(r["low"] == pytest.approx(r["predicted"] - 0.1) for r in sure)
+    assert sure[-1]["spp"] > plain[-1]["spp"] and sure[-1]["true"] >= 0.9 > plain[-1]["true"]
+    assert len(np.unique(sure[-1]["spp_map"])) > 1  # the samples were placed, not spread
+    _, budget = render_adaptive(scene, oracle, target_score=0.9999, max_overhead=None, **{**kwargs, "total_spp": 12})
+    assert budget[-1]["stop"] == "spp" and budget[-1]["spp"] >= 12
+
+
+def test_render_adaptive_sure_needs_a_target_and_a_calibrated_scorer(scene, scorer, reference):
+    with pytest.raises(ValueError, match="target_score"):
+        render_adaptive(scene, CalibratedOracle(reference, 0.1), total_spp=8, sure=True, warmup=False)
+    with pytest.raises(ValueError, match="calibrated interval"):
+        render_adaptive(scene, scorer, total_spp=8, target_score=0.9, sure=True, warmup=False)
+    with pytest.raises(ValueError, match="an SSIM scorer"):
+        render_adaptive(scene, None, total_spp=8, target_score=0.9, sure=True, warmup=False)
+
+
 def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
     with pytest.raises(ValueError, match="budget"):
         render_adaptive(scene, scorer)

@@ -10,7 +10,7 @@ import pytest
 
 mi = pytest.importorskip("mitsuba")
 
-from test_render_loop import SIZE, RecordingScorer  # noqa: E402
+from test_render_loop import SIZE, CalibratedOracle, RecordingScorer  # noqa: E402
 
 from data_gen.plan import ImageTask, Job  # noqa: E402
 from data_gen.render import scene_dict  # noqa: E402
@@ -112,6 +112,33 @@ def test_render_adaptive_per_pixel(llvm_scene):
     )
     np.testing.assert_array_equal(again, first)
     np.testing.assert_array_equal(log1[-1]["spp_map"], log2[-1]["spp_map"])
+
+
+def test_render_adaptive_per_pixel_stops_when_sure(llvm_scene):
+    # Per pixel, sure=True rates the image itself at every count (map_spp does not apply, as for
+    # render_until): every row has its low end, and the run ends at the first one at the target.
+    scene, reference = llvm_scene
+    oracle = CalibratedOracle(reference, 0.05)
+    image, log = render_adaptive(
+        scene,
+        oracle,
+        total_spp=400,
+        initial_spp=4,
+        spp_per_step=4,
+        map_spp=8,
+        max_overhead=None,
+        reference=reference,
+        seed=5,
+        target_score=0.9,
+        sure=True,
+        warmup=False,
+    )
+    assert log[-1]["stop"] == "sure" and np.isfinite(image).all()
+    assert all(r["scored"] and r["low"] is not None for r in log)
+    assert log[-1]["low"] >= 0.9 and all(r["low"] < 0.9 for r in log[:-1])
+    assert log[-1]["spp"] > 8 and log[-1]["true"] >= 0.9 + 0.05 - 1e-6
+    counts = log[-1]["spp_map"]
+    assert counts.max() > 2 * counts.min()
 
 
 def test_render_adaptive_without_a_scorer_renders_uniformly(llvm_scene):

@@ -249,9 +249,7 @@ def render_until(
         map_spp = None
     schedule = Schedule(spp_per_step, spp_per_step, growth)
     probes = Probes(map_spp, probe_spp, back_to_back=True, grace_step=True)
-    stops: list[StopRule] = []
-    if target_score is not None:
-        stops.append(SureOfTarget(target_score) if sure else TargetScore(target_score))
+    stops = _target_stops(target_score, sure)
     stops.append(TimeBudget(time_budget_s))
     if max_spp is not None:
         stops.append(MaxSpp(max_spp, spp_per_step))
@@ -270,6 +268,13 @@ def render_until(
         reference=reference,
         warmup=warmup,
     )
+
+
+def _target_stops(target_score: float | None, sure: bool) -> list[StopRule]:
+    """The first stop rule: the score reaching ``target_score``, or its low end (``sure``); none without a target."""
+    if target_score is None:
+        return []
+    return [SureOfTarget(target_score) if sure else TargetScore(target_score)]
 
 
 def _check_sure(scorer, target_score: float | None) -> None:
@@ -305,6 +310,8 @@ def render_adaptive(
     reference: np.ndarray | None = None,
     seed: int = 0,
     warmup: bool = True,
+    target_score: float | None = None,
+    sure: bool = False,
 ) -> tuple[np.ndarray, list[dict]]:
     """Adaptive sampling: spend samples where the predicted map expects them to remove the most error.
 
@@ -317,7 +324,9 @@ def render_adaptive(
     current (:class:`~nriqa.render.error_model.ErrorModel`). Per pixel, past ``map_spp`` the maps
     come from probes (:mod:`nriqa.render.rating`; never two in a row, and not the step that passes
     ``map_spp``); per tile, the scorer always rates the image. Stops when the mean samples per
-    pixel reach ``total_spp`` or the render + scoring time reaches ``time_budget_s`` (give at least one).
+    pixel reach ``total_spp`` or the render + scoring time reaches ``time_budget_s`` (give at least one),
+    or, with ``target_score``, at the first fresh prediction that reaches it, as :func:`render_until` does
+    (its steps cut to where the prediction should reach it): adaptive sampling that ends itself.
 
     Args:
         scene: a Mitsuba scene dict with ``sensor.film`` (box filter) and sampler; per pixel also a
@@ -338,17 +347,29 @@ def render_adaptive(
         map_spp, probe_spp: per pixel, as for :class:`~nriqa.render.rating.Probes` (single-image
             scorers; a two-buffer scorer rates the image's halves at every count).
         seed: base seed; every render call gets a distinct one.
+        target_score: predicted pooled score to stop at (``None``: run to the budget). The budget
+            still bounds the run: a target the scorer never reads stops there.
+        sure: stop when the low end of the scorer's calibrated interval reaches ``target_score``, as
+            for :func:`render_until` (the single-image scorer then rates the image at every count:
+            ``map_spp`` does not apply). The interval was calibrated on uniformly sampled renders; how
+            often adaptive runs stopped this way end at or above the target is measured in
+            ``benchmarks/render_compare.py --sure`` (docs/results/render_compare.md).
 
     Returns:
-        ``(image, log)`` as for :func:`render_loop`; the last row's ``stop`` is ``"spp"`` or
-        ``"time"``, and ``spp_map`` in it holds the ``(H, W)`` counts.
+        ``(image, log)`` as for :func:`render_loop`; the last row's ``stop`` is ``"target"`` (``"sure"``
+        with ``sure=True``), ``"spp"`` or ``"time"``, and ``spp_map`` in it holds the ``(H, W)`` counts.
     """
     if total_spp is None and time_budget_s is None:
         raise ValueError("render_adaptive needs a budget: total_spp, time_budget_s or both")
     check_overhead(max_overhead)
+    if sure:
+        _check_sure(scorer, target_score)
+        map_spp = None
     schedule = Schedule(initial_spp, spp_per_step, growth)
     probes = Probes(map_spp, probe_spp)
-    stops: list[StopRule] = [SppBudget(total_spp)] if total_spp is not None else []
+    stops = _target_stops(target_score, sure)
+    if total_spp is not None:
+        stops.append(SppBudget(total_spp))
     if time_budget_s is not None:
         stops.append(TimeBudget(time_budget_s))
     film, placement = _adaptive_parts(scene, scorer, tile, uniform_share, fraction, spp_per_step, seed)
