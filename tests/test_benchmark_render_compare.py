@@ -76,6 +76,9 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
         (["--twin-scorer", "fcnn_fast"], "--twin-scorer fcnn_fast is no two-buffer scorer"),
         (["--scorer", "fcnn_fast", "--overlap"], "--overlap: --scorer fcnn_fast is not read in windows"),
         (["--map-spp", "-1"], "--map-spp must be >= 0 or 'none'"),
+        (["--stop-methods", "peer,guess"], "--stop-methods: unknown method(s) guess"),
+        (["--stop-methods", "adaptive-sure-twin"], "need(s) a two-buffer scorer: give --twin-scorer"),
+        (["--scorer", "fcnn", "--stop-methods", "adaptive-sure"], "adaptive-sure: --scorer fcnn has no calibrated"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path, argv, message):
@@ -164,3 +167,20 @@ def test_the_stopping_section_runs_alone_with_curves_of_its_own(tmp_path):
     sure = [r for r in stops if r["method"].startswith("sure")]
     assert len(sure) == 2 * len(stops) // 5 and "runs at or above" in table
     assert all(set(r["stops"].split("/")) <= {"sure", "max_spp"} for r in sure)
+
+
+def test_the_sure_stop_in_render_adaptive_is_a_stopping_method_of_its_own(tmp_path):
+    """``--stop-methods``: only the methods asked for run (no peer tuning, no margins); adaptive-sure places samples."""
+    out = tmp_path / "out"
+    methods = ("adaptive-sure,adaptive-sure-twin", "--twin-scorer", "dual_fast")
+    run_quick(out, "--skip", "equal_time,half_cost", "--stop-methods", *methods)
+    with open(out / "render_compare_stop.csv", newline="") as fh:
+        stops = list(csv.DictReader(fh))
+    labels = {"adaptive, sure (low end)", "adaptive, sure, two-buffer (low end)"}
+    assert {r["method"] for r in stops} == labels and len(stops) == 2 * 3 * 2  # scenes x targets x methods
+    assert all(set(r["stops"].split("/")) <= {"sure", "spp"} for r in stops)
+    assert any("sure" in r["stops"] for r in stops)
+    runs = json.loads((out / "runs.json").read_text())
+    assert runs["stop_thresholds"] == {} and runs["stop_margins"] == {}
+    table = (out / "render_compare.md").read_text()
+    assert "Peer thresholds" not in table and "Learned stop rules" not in table and "runs at or above" in table
