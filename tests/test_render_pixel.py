@@ -61,6 +61,26 @@ def test_pixel_renderer_matches_mi_render_and_is_deterministic(llvm_scene):
         PixelRenderer(mi.load_dict({**scene, "integrator": {"type": "ptracer", "max_depth": 6}}))
 
 
+def test_a_sensor_that_cannot_be_frozen_is_traced_every_call(llvm_scene, caplog):
+    # The thin-lens camera (the dof family) fails Dr.Jit's recording: the renderer warns once and traces instead,
+    # with the sums an unfrozen renderer gives; loops on such a scene work per pixel.
+    from data_gen.render import loop_scene
+    from nriqa.render.film import load_scene
+
+    scene = load_scene(loop_scene("dof", (SIZE, SIZE)))
+    counts = np.full((SIZE, SIZE), 2)
+    with caplog.at_level("WARNING", logger="nriqa.render.pixel_renderer"):
+        renderer = PixelRenderer(scene)
+        first = renderer(counts, seed=3)
+        again = renderer(counts, seed=3)
+    assert not renderer.frozen and len([r for r in caplog.records if "cannot record" in r.message]) == 1
+    np.testing.assert_array_equal(first, PixelRenderer(scene, freeze=False)(counts, seed=3))
+    np.testing.assert_array_equal(first, again)
+    assert np.isfinite(first).all() and first.sum() > 0
+    _, log = render_adaptive(loop_scene("dof", (SIZE, SIZE)), None, total_spp=8, warmup=False, seed=1)
+    assert log[-1]["stop"] == "spp"
+
+
 def test_frozen_pixel_renderer_gives_the_traced_sums(llvm_scene):
     # The frozen kernel replays for new seeds and wavefront sizes, bit for bit what tracing every call gives.
     scene, _ = llvm_scene

@@ -7,11 +7,15 @@ pixel index, so a step can give every pixel its own count. Needs a JIT variant (
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from nriqa.render.backend import is_jit_variant
 
 __all__ = ["PixelRenderer"]
+
+log = logging.getLogger(__name__)
 
 
 def _camera_samples(scene, index, seed, width: int, offset: tuple[int, int], full: tuple[int, int]):
@@ -65,7 +69,9 @@ class PixelRenderer:
     recorded kernel (the pixel indices go in 64-byte aligned, see :func:`_aligned`: Dr.Jit records
     anew when the alignment of mapped memory changes). Tracing the integrator is a fixed cost per
     call, which ``mi.render`` pays on every call (``benchmarks/pixel_renderer.py`` measures it).
-    Frozen and traced calls give the same sums, bit for bit.
+    Frozen and traced calls give the same sums, bit for bit. A scene whose sensor Dr.Jit cannot record
+    (Mitsuba 3.9's thin-lens camera: a variable of its own made before recording) is traced on every
+    call instead, with one warning: the same sums, at the tracing cost per call.
     """
 
     def __init__(self, scene, freeze: bool = True):
@@ -86,6 +92,7 @@ class PixelRenderer:
         self.full = tuple(int(v) for v in film.size())
         # One frozen function per renderer: its recordings go with it.
         self._samples = dr.freeze(_camera_samples) if freeze else _camera_samples
+        self.frozen = freeze
 
     def __call__(self, counts: np.ndarray, seed: int) -> np.ndarray:
         """Sum of ``counts[y, x]`` new samples in every pixel: ``(H, W, 3)`` float64 (non-finite samples count as 0)."""
@@ -123,7 +130,18 @@ class PixelRenderer:
             return flat, np.zeros((3, 0))
         index_jit = mi.UInt32(_aligned(index))
         seed_jit = dr.opaque(mi.UInt32, seed & 0xFFFFFFFF)
-        rgb = self._samples(self.scene, index_jit, seed_jit, self.width, self.offset, self.full)
+        try:
+            rgb = self._samples(self.scene, index_jit, seed_jit, self.width, self.offset, self.full)
+        except RuntimeError as exc:
+            if not (self.frozen and "record" in str(exc)):
+                raise
+            log.warning(
+                "Dr.Jit cannot record this scene's %s in a frozen function: every call is traced instead (%s)",
+                type(self.scene.sensors()[0]).__name__,
+                str(exc).splitlines()[0],
+            )
+            self._samples, self.frozen = _camera_samples, False
+            rgb = self._samples(self.scene, index_jit, seed_jit, self.width, self.offset, self.full)
         dr.eval(rgb)  # one kernel for all three channels (reading .x, .y, .z lazily would trace three times)
         return flat, np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)])
 
