@@ -137,7 +137,7 @@ class PixelRenderer:
                 raise
             log.warning(
                 "Dr.Jit cannot record this scene's %s in a frozen function: every call is traced instead (%s)",
-                type(self.scene.sensors()[0]).__name__,
+                str(self.scene.sensors()[0]).split("[", 1)[0],  # the plugin's class, e.g. ThinLensCamera
                 str(exc).splitlines()[0],
             )
             self._samples, self.frozen = _camera_samples, False
