@@ -108,10 +108,13 @@ def dataset_scenes(root: Path, only: list[str] | None) -> list[tuple[str, int, d
     unknown = sorted(set(only or ()) - {j.scene for j in jobs})
     if unknown:
         fail(f"--scenes {', '.join(unknown)}: not in {root}")
-    out = []
+    out, seen = [], set()
     for job in jobs:
         if job.algorithm != get_scene(job.scene).reference_algorithm or (only and job.scene not in only):
             continue
+        if (job.scene, job.variant) in seen:  # the reference and the ladder may be jobs of their own
+            continue
+        seen.add((job.scene, job.variant))
         ref = job.tasks[0].reference  # the variant's reference, whichever job renders it
         if not (root / ref).is_file():
             fail(f"{root / ref}: missing; finish the dataset first (nriqa-data resumes)")

@@ -55,6 +55,8 @@ def test_rows_and_coverage_on_the_tiny_preset(tiny, tmp_path):
         (s, loop) for s in ("single", "two-buffer") for loop in ("uniform", "adaptive")
     }
     assert {r["family"] for r in rows} == {"cornell"}
+    steps = [tuple(r[k] for k in ("scorer", "loop", "variant", "seed", "spp")) for r in rows]
+    assert len(steps) == len(set(steps)), "each scene variant runs once"
     for r in rows:
         score, low, true = float(r["score"]), float(r["low"]), float(r["true"])
         assert (
