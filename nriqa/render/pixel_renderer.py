@@ -69,9 +69,10 @@ class PixelRenderer:
     recorded kernel (the pixel indices go in 64-byte aligned, see :func:`_aligned`: Dr.Jit records
     anew when the alignment of mapped memory changes). Tracing the integrator is a fixed cost per
     call, which ``mi.render`` pays on every call (``benchmarks/pixel_renderer.py`` measures it).
-    Frozen and traced calls give the same sums, bit for bit. A scene whose sensor Dr.Jit cannot record
-    (Mitsuba 3.9's thin-lens camera: a variable of its own made before recording) is traced on every
-    call instead, with one warning: the same sums, at the tracing cost per call.
+    Frozen and traced calls give the same sums, bit for bit. A scene Dr.Jit cannot record (a variable of
+    the scene made before recording and not traversable: in Mitsuba 3.9 the thin-lens camera of the ``dof``
+    family and the scenes of ``textured_light``) is traced on every call instead, with one warning: the same
+    sums, at the tracing cost per call.
     """
 
     def __init__(self, scene, freeze: bool = True):
@@ -136,7 +137,7 @@ class PixelRenderer:
             if not (self.frozen and "record" in str(exc)):
                 raise
             log.warning(
-                "Dr.Jit cannot record this scene's %s in a frozen function: every call is traced instead (%s)",
+                "Dr.Jit cannot record this scene (sensor %s) in a frozen function: every call is traced instead (%s)",
                 str(self.scene.sensors()[0]).split("[", 1)[0],  # the plugin's class, e.g. ThinLensCamera
                 str(exc).splitlines()[0],
             )
