@@ -36,6 +36,7 @@ __all__ = [
     "save_pretrained",
     "load_pretrained",
     "list_pretrained",
+    "net_from_card",
     "sha256_file",
     "update_card",
 ]
@@ -173,7 +174,12 @@ def load_pretrained(name: str, dir: str | os.PathLike | None = None) -> nn.Modul
     Raises:
         PretrainedError: unknown name (lists the available ones), checksum mismatch, unreadable file.
     """
-    card, pt = load_card(name, dir)
+    return net_from_card(*load_card(name, dir))
+
+
+def net_from_card(card: dict, pt: Path) -> nn.Module:
+    """The network of the ``.pt`` file ``pt`` whose card :func:`load_card` read, in eval mode, after checking its
+    SHA-256 against the card (for callers that also read the card, so that it is read once)."""
     actual = sha256_file(pt)
     if actual != card["sha256"]:
         raise PretrainedError(

@@ -209,12 +209,12 @@ class Scorer:
         scorer's ``interval`` (and ``ldr_interval``) unless given (``interval=None`` turns both off).
         """
         from nriqa.inference import DEFAULT_WEIGHTS
-        from nriqa.inference.pretrained import PretrainedError, load_card, load_pretrained
+        from nriqa.inference.pretrained import PretrainedError, load_card, net_from_card
 
         name = name or DEFAULT_WEIGHTS
-        net = load_pretrained(name, dir=dir)
+        card, pt = load_card(name, dir)
+        net = net_from_card(card, pt)
         if "interval" not in kwargs:
-            card = load_card(name, dir)[0]
             try:
                 for key, arg in (("score_interval", "interval"), ("score_interval_ldr", "ldr_interval")):
                     entry = card.get(key)
