@@ -133,7 +133,7 @@ def load_scorers(args) -> dict[str, object]:
     single = load_scorer("--scorer", args.scorer)
     if getattr(single, "needs_twin", False):
         fail(f"--scorer {args.scorer} needs a twin: pass it as --twin-scorer")
-    sure = {by: k for k in args.stop_methods if "sure" in k for by in [STOP_METHODS[k][1]]}  # scorer key -> method
+    sure = {STOP_METHODS[k][1]: k for k in args.stop_methods if "sure" in k}  # scorer key -> a sure method
     if "adaptive" in sure and getattr(single, "interval", None) is None:
         fail(f"{sure['adaptive']}: --scorer {args.scorer} has no calibrated interval (shipped weights carry one)")
     scorers = {"adaptive": single}

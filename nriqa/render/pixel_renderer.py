@@ -93,7 +93,11 @@ class PixelRenderer:
         self.full = tuple(int(v) for v in film.size())
         # One frozen function per renderer: its recordings go with it.
         self._samples = dr.freeze(_camera_samples) if freeze else _camera_samples
-        self.frozen = freeze
+
+    @property
+    def frozen(self) -> bool:
+        """Whether calls replay a recorded kernel (``False``: traced every call, asked for or fallen back to)."""
+        return self._samples is not _camera_samples
 
     def __call__(self, counts: np.ndarray, seed: int) -> np.ndarray:
         """Sum of ``counts[y, x]`` new samples in every pixel: ``(H, W, 3)`` float64 (non-finite samples count as 0)."""
@@ -141,7 +145,7 @@ class PixelRenderer:
                 str(self.scene.sensors()[0]).split("[", 1)[0],  # the plugin's class, e.g. ThinLensCamera
                 str(exc).splitlines()[0],
             )
-            self._samples, self.frozen = _camera_samples, False
+            self._samples = _camera_samples
             rgb = self._samples(self.scene, index_jit, seed_jit, self.width, self.offset, self.full)
         dr.eval(rgb)  # one kernel for all three channels (reading .x, .y, .z lazily would trace three times)
         return flat, np.stack([np.array(rgb.x), np.array(rgb.y), np.array(rgb.z)])
