@@ -352,8 +352,9 @@ def render_adaptive(
         sure: stop when the low end of the scorer's calibrated interval reaches ``target_score``, as
             for :func:`render_until` (the single-image scorer then rates the image at every count:
             ``map_spp`` does not apply). The interval was calibrated on uniformly sampled renders; how
-            often adaptive runs stopped this way end at or above the target is measured in
-            ``benchmarks/render_compare.py --sure`` (docs/results/render_compare.md).
+            often adaptive runs stopped this way end at or above the target is measured by
+            ``benchmarks/render_compare.py --stop-methods adaptive-sure``, and the interval along
+            adaptive loops by ``benchmarks/adaptive_interval.py`` (docs/results/render_compare.md).
 
     Returns:
         ``(image, log)`` as for :func:`render_loop`; the last row's ``stop`` is ``"target"`` (``"sure"``
