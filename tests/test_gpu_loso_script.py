@@ -48,3 +48,21 @@ def test_a_missing_dataset_stops_before_any_fold(tmp_path):
     assert proc.returncode == 2
     assert "no dataset at" in proc.stdout and "carry one or render it first" in proc.stdout
     assert not (tmp_path / "work").exists()
+
+
+def test_a_fold_that_fails_early_with_patches_on_the_accelerator_runs_again_on_the_cpu(tmp_path, synthetic_dataset):
+    # This machine has no CUDA device, so data.device=cuda fails at the fold's start, as a broken
+    # accelerator path would on the lent machine.
+    proc = run_script(tmp_path, synthetic_dataset, PARALLEL="1", DEVICE="cuda")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    log = (tmp_path / "out" / "loso.log").read_text()
+    assert "fold alpha failed with data.device=cuda" in log and "again with patches on the CPU" in log
+    assert "fold alpha rc=0" in log and "fold beta rc=0" in log and "evaluate rc=0" in log
+    assert "steps" in log
+
+
+def test_a_fold_that_fails_late_is_not_run_again(tmp_path, synthetic_dataset):
+    run_script(tmp_path, synthetic_dataset, DEVICE="cuda", RETRY_WITHIN="0", SCENES="alpha")
+    log = (tmp_path / "out" / "loso.log").read_text()
+    assert "fold alpha rc=1" in log and "again with patches on the CPU" not in log
+    assert "fold alpha left no run" in log

@@ -52,3 +52,24 @@ def test_an_empty_dataset_is_one_line(tmp_path):
     with pytest.raises(SystemExit) as exit_info:
         main([str(src), str(tmp_path / "dst")])
     assert "no record;" in str(exit_info.value)
+
+
+def test_several_sources_make_one_dataset(tmp_path, capsys):
+    first = make_dataset(tmp_path / "a", size=16, scenes=("alpha",), spps=(4,))
+    second = make_dataset(tmp_path / "b", size=16, scenes=("beta",), spps=(4, 8))
+    main([str(first), str(second), str(tmp_path / "dst"), "--no-twins"])
+    records, meta = read_manifest(tmp_path / "dst")
+    assert sorted(r.id for r in records) == ["alpha-4-test", "alpha-ref", "beta-4-test", "beta-8-test", "beta-ref"]
+    assert meta["half_copy_of"] == [str(first), str(second)]
+    read_datasets(tmp_path / "dst")  # every image of both sources is there
+    assert "5 records" in capsys.readouterr().out
+
+
+def test_sources_holding_the_same_records_are_refused_before_any_image(tmp_path):
+    first = make_dataset(tmp_path / "a", size=16, scenes=("alpha",), spps=(4,))
+    second = make_dataset(tmp_path / "b", size=16, scenes=("alpha",), spps=(4,))
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(first), str(second), str(tmp_path / "dst")])
+    message = str(exit_info.value)
+    assert f"is also in {first}" in message and "hold different variants" in message
+    assert not (tmp_path / "dst").exists()

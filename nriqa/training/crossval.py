@@ -87,6 +87,7 @@ def run_fold(cfg: DictConfig, scene: str, fold_dir: Path) -> dict:
         "image": image_stats,
         "images": rows,
         "epochs": int(objects["trainer"].current_epoch),
+        "steps": int(objects["trainer"].global_step),
         "seconds": objects["seconds"],
         "best_ckpt": objects["best_ckpt"],
         "last_logged": metrics,
@@ -160,8 +161,8 @@ def crossval(cfg: DictConfig) -> list[dict]:
             continue
         print(f"fold {scene}: training")
         result = run_fold(cfg, scene, fold_dir)
-        val, image = result["val"]["pcc"], result["image"]["pcc"]
-        print(f"fold {scene}: val PCC {val:.3f}, image PCC {image:.3f}, {result['seconds']:.0f} s")
+        val, image, took = result["val"]["pcc"], result["image"]["pcc"], result["seconds"]
+        print(f"fold {scene}: val PCC {val:.3f}, image PCC {image:.3f}, {took:.0f} s, {result['steps']} steps")
         results.append(result)
         # Reports after each fold, so a long run can be read while it goes on.
         write_reports(out_dir, results, f"{cfg.experiment_name}, schedule {cfg.schedule.name}")

@@ -10,7 +10,8 @@
 #   DATA=data/loso2629 (a dataset root: manifest.json)  OUT=/tmp/out  WORK=/tmp/loso (fold runs)
 #   EXPERIMENT=unet_fast  EPOCHS=60 (x 200 batches of 8 patches of 64x64: stop 24's 12000-step recipe)
 #   SEED=12345  FOLD_TIME=00:00:06:00 (Lightning max_time per fold)  PARALLEL=17 (folds at once)
-#   TRAINER=gpu  DEVICE=cuda (data.device: patches made on the GPU; empty: on the CPU, one core per fold)
+#   TRAINER=gpu  DEVICE=cuda (data.device: patches made on the GPU; empty: on the CPU, one core per fold; a fold
+#   that fails within RETRY_WITHIN=180 seconds with them on DEVICE is run again with them on the CPU)
 #   SCENES= (space-separated families; default every family of DATA)  EXTRA= (more overrides for every fold)
 #   SITE= (a tarball of scripts/gpu/pack_site.sh to unpack)  WHEELS= (a folder of wheels to install instead)
 #   PY=python3
@@ -42,13 +43,26 @@ SCENES=${SCENES:-$("$PY" -c "import json, sys; print(*sorted({r['scene'] for r i
 rm -rf "$W" && mkdir -p "$W/all/folds" "$W/logs"
 DEV=${DEVICE-cuda}
 echo "[$(el)] folds: $SCENES; ${PARALLEL:-all} at a time"
-fold() { # SCENE
+train_fold() { # SCENE DEVICE: one fold, patches made on DEVICE (empty: on the CPU)
+  rm -rf "${W:?}/cv/$1"
   # shellcheck disable=SC2086  # EXTRA is a list of overrides
   "$PY" -m nriqa.cli.crossval experiment="${EXPERIMENT:-unet_fast}" trainer="${TRAINER:-gpu}" "paths.data_dir=[$DATA]" \
     data.patch_size=64 data.batch_size=8 schedule.map.epochs="${EPOCHS:-60}" seed="${SEED:-12345}" \
-    ${DEV:+data.device=$DEV} "crossval.scenes=[$1]" crossval.out_dir="$W/cv/$1" trainer.enable_progress_bar=false \
+    ${2:+data.device=$2} "crossval.scenes=[$1]" crossval.out_dir="$W/cv/$1" trainer.enable_progress_bar=false \
     +trainer.max_time="${FOLD_TIME:-00:00:06:00}" ${EXTRA:-} >"$W/logs/fold_$1.txt" 2>&1
-  local rc=$?
+}
+fold() { # SCENE
+  local t0 rc
+  t0=$(date +%s)
+  train_fold "$1" "$DEV"
+  rc=$?
+  # A fold that fails early with its patches on the accelerator is run again with them on the CPU (slower,
+  # but a result); one that fails late is not, so the lease still ends in time.
+  if [ $rc -ne 0 ] && [ -n "$DEV" ] && [ $(($(date +%s) - t0)) -lt "${RETRY_WITHIN:-180}" ]; then
+    echo "[$(el)] fold $1 failed with data.device=$DEV: $(grep -v '^\s*$' "$W/logs/fold_$1.txt" | tail -1); again with patches on the CPU"
+    train_fold "$1" ""
+    rc=$?
+  fi
   echo "[$(el)] fold $1 rc=$rc $(grep -h "fold $1:" "$W/logs/fold_$1.txt" | tail -1)"
 }
 pids=()  # a bare `wait` would also wait for the tee above
