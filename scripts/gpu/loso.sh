@@ -15,8 +15,10 @@
 #   SCENES= (space-separated families; default every family of DATA)  EXTRA= (more overrides for every fold)
 #   SITE= (a tarball of scripts/gpu/pack_site.sh to unpack)  WHEELS= (a folder of wheels to install instead)
 #   PY=python3
-# Writes OUT/loso.log (machine, per-fold lines, the evaluation's tables), OUT/eval/ (nriqa-evaluate's tables)
-# and OUT/loso_runs.tgz (each fold's last checkpoint without optimiser state, its logs and result.json).
+# Writes OUT/loso.log (machine, per-fold lines, the evaluation's tables) and OUT/loso_runs.tgz: eval/
+# (nriqa-evaluate's tables), each fold's last checkpoint without optimiser state, its logs and result.json.
+# The lent machine sends back at most 8 files of at most 16 MiB: a larger pack is cut into 15 MiB parts,
+# OUT/loso_runs.tgz.part00, part01, ... (`cat loso_runs.tgz.part* | tar -xz` unpacks them).
 set -u
 T0=$(date +%s)
 el() { echo $(($(date +%s) - T0)); }
@@ -77,11 +79,11 @@ for s in $SCENES; do
 done
 echo "[$(el)] folds done"
 # shellcheck disable=SC2086  # SCENES is a list
-"$PY" -m nriqa.evaluate "$DATA" --out "$OUT/eval" --crossval "$W/all" --window 64 --baselines none --no-figures \
+"$PY" -m nriqa.evaluate "$DATA" --out "$W/eval" --crossval "$W/all" --window 64 --baselines none --no-figures \
   --scenes $SCENES >"$W/logs/eval.txt" 2>&1
 rc=$?
 echo "[$(el)] evaluate rc=$rc"
-cat "$OUT/eval/comparison.md" 2>/dev/null || tail -5 "$W/logs/eval.txt"
+cat "$W/eval/comparison.md" "$W/eval/per_scene.md" 2>/dev/null || tail -5 "$W/logs/eval.txt"
 "$PY" - "$W" <<'P'
 import pathlib, sys, torch
 for p in pathlib.Path(sys.argv[1]).glob("cv/*/folds/*/checkpoints/*.ckpt"):
@@ -91,5 +93,7 @@ for p in pathlib.Path(sys.argv[1]).glob("cv/*/folds/*/checkpoints/*.ckpt"):
     c = torch.load(p, map_location="cpu", weights_only=True)
     torch.save({k: c[k] for k in ("state_dict", "hyper_parameters", "epoch", "global_step", "pytorch-lightning_version") if k in c}, p)
 P
-tar -C "$W" --exclude='*/tensorboard/*' -czf "$OUT/loso_runs.tgz" cv logs
-echo "[$(el)] packed $(du -h "$OUT/loso_runs.tgz" | cut -f1)"
+pack=$W/loso_runs.tgz
+tar -C "$W" --exclude='*/tensorboard/*' -czf "$pack" cv logs $([ -d "$W/eval" ] && echo eval)
+if [ "$(stat -c %s "$pack")" -gt $((15 * 1048576)) ]; then split -b 15M -d "$pack" "$OUT/loso_runs.tgz.part"; else cp "$pack" "$OUT/"; fi
+echo "[$(el)] packed $(du -h "$pack" | cut -f1): $(cd "$OUT" && echo loso_runs.tgz*)"
