@@ -7,9 +7,15 @@ machine, a batch made one item at a time (the loader's fetch without ``__getitem
 batch made at once, and one ``unet_fast`` training step (forward, Charbonnier+PCC-like loss,
 backward, Adam) on it. Prints a Markdown table; medians over repeats.
 
+With ``--device cuda`` the network steps there, and a third way is timed: the same batch made on the
+accelerator (``data.device``: the images moved there once, each batch cut, displayed, jittered and
+scored there; the random draws stay on the CPU). Times on the accelerator are taken after a
+synchronisation.
+
 Usage::
 
     python benchmarks/train_step.py --data data/default [--patch 64 --batch 8 --repeats 30 --threads 1]
+    python benchmarks/train_step.py --data data/default --device cuda
 """
 
 from __future__ import annotations
@@ -41,18 +47,37 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--repeats", type=int, default=30, help="batches timed per way")
     ap.add_argument("--threads", type=int, default=1, help="torch CPU threads (training runs use 1)")
     ap.add_argument("--tonemap-only", action="store_true", help="no display mix (experiments fcnn, fcnn_fast)")
+    ap.add_argument("--device", default="cpu", help="where the network steps (cuda: batches made there are timed too)")
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
-    try:
+    device = torch.device(args.device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        sys.exit("train_step: --device cuda, but torch sees no CUDA device here; leave --device out")
+    on_device = args.device != "cpu"  # cpu:0 times the device path on the CPU
+
+    def patch_set(where: str | None):
         dm = NRIQADataModule(
-            args.data, patch_size=args.patch, batch_size=args.batch, display=None if args.tonemap_only else MIX
+            args.data,
+            patch_size=args.patch,
+            batch_size=args.batch,
+            display=None if args.tonemap_only else MIX,
+            device=where,
         )
         dm.setup()
+        return dm.train_set
+
+    try:
+        ds = patch_set(None)
+        ds_device = patch_set(args.device) if on_device else None
     except (OSError, ValueError) as exc:
         sys.exit(f"train_step: {exc}")
-    ds = dm.train_set
-    net = create_model("unet_fast", window=args.patch)
+    net = create_model("unet_fast", window=args.patch).to(device)
     opt = torch.optim.Adam(net.parameters(), 1e-4)
+
+    def sync() -> float:
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        return time.perf_counter()
 
     def one_by_one(ks: list[int]):
         return [ds.__getitems__([k])[0] for k in ks]
@@ -61,29 +86,35 @@ def main(argv: list[str] | None = None) -> None:
         return ds.__getitems__(ks)
 
     def step(x: torch.Tensor, y: torch.Tensor) -> None:
+        x, y = x.to(device), y.to(device)
         out = net(x)
         loss = torch.sqrt((out - y) ** 2 + 1e-6).mean()
         opt.zero_grad()
         loss.backward()
         opt.step()
 
-    times: dict[str, list[float]] = {"one by one": [], "batched": [], "network step": []}
+    ways = ["one by one", "batched"] + ([f"batched on {args.device}"] if on_device else [])
+    times: dict[str, list[float]] = {name: [] for name in [*ways, "network step"]}
     for r in range(args.repeats + 2):  # the first two are warm-up
         ks = list(range(r * args.batch, (r + 1) * args.batch))
-        t0 = time.perf_counter()
+        t0 = sync()
         one_by_one(ks)
-        t1 = time.perf_counter()
+        t1 = sync()
         items = batched(ks)
-        t2 = time.perf_counter()
+        t2 = sync()
         step(torch.stack([i[0] for i in items]), torch.stack([i[1] for i in items]))
-        t3 = time.perf_counter()
+        took = [t1 - t0, t2 - t1, sync() - t2]
+        if on_device:
+            t4 = sync()
+            ds_device.__getitems__(ks)
+            took.insert(2, sync() - t4)
         if r >= 2:
-            for name, t in zip(times, (t1 - t0, t2 - t1, t3 - t2)):
+            for name, t in zip([*ways, "network step"], took):
                 times[name].append(t)
     med = {name: statistics.median(t) for name, t in times.items()}
     net_t = med["network step"]
     rows = []
-    for name in ("one by one", "batched"):
+    for name in ways:
         rows.append(
             [
                 f"patches, {name}",
@@ -93,9 +124,10 @@ def main(argv: list[str] | None = None) -> None:
                 f"{med['one by one'] / med[name]:.2f}x",
             ]
         )
-    rows.append(["unet_fast step (fwd+bwd+Adam)", f"{net_t * 1e3:.1f}", "-", "-", "-"])
+    rows.append([f"unet_fast step (fwd+bwd+Adam, {args.device})", f"{net_t * 1e3:.1f}", "-", "-", "-"])
+    gpu = f"; {torch.cuda.get_device_name(device)}" if device.type == "cuda" else ""
     print(
-        f"CPU: {machine_line()}; {args.data}, {len(ds.pairs)} training images, {args.batch} patches of "
+        f"CPU: {machine_line()}{gpu}; {args.data}, {len(ds.pairs)} training images, {args.batch} patches of "
         f"{args.patch}x{args.patch}, {'tone map only' if args.tonemap_only else 'display mix'}; "
         f"median of {args.repeats} interleaved repeats\n"
     )
