@@ -295,3 +295,64 @@ def test_ladder_stops_on_the_score_and_on_the_low_end(tmp_path, capsys):
     capsys.readouterr()
     assert coverage.main(["stops", str(cal), "--predictor", "m", "--weights", "unet_fast", "--targets", "0.9,1"]) == 2
     assert "--targets" in capsys.readouterr().err
+
+
+# --- intervals calibrated on render loops --------------------------------------------------------------
+
+
+def _loop_rows_csv(path: Path, seed: int, families=("a", "b", "c", "d")) -> Path:
+    """Rows as benchmarks/adaptive_interval.py writes them: the adaptive loops' scores read 0.05 high."""
+    rng = np.random.default_rng(seed)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["scorer", "loop", "family", "variant", "seed", "spp", "score", "low", "true", "band"])
+        for family in families:
+            p, t = _draw(rng, 80)
+            for loop, shift in (("uniform", 0.0), ("adaptive", 0.05)):
+                for i, (pi, ti) in enumerate(zip(p, t)):
+                    w.writerow(["two-buffer", loop, family, 0, 0, 4 * (i + 1), pi + shift, pi - 0.01, ti, ""])
+    return path
+
+
+def test_a_loop_interval_is_fitted_on_loop_rows_into_the_card_and_the_scorer_reads_it(tmp_path, capsys):
+    save_pretrained(create_model("fcnn_fast"), "w", {"note": "test"}, dir=tmp_path, spec={"name": "fcnn_fast"})
+    update_card("w", {"score_interval": ScoreInterval(0.9, (0.0, 1.0), (-0.01,), (0.01,), (50,)).to_dict()}, tmp_path)
+    rows = _loop_rows_csv(tmp_path / "rows.csv", 0)
+    weights = ["--weights", "w", "--dir", str(tmp_path)]
+    for kind in ("uniform", "adaptive"):
+        assert coverage.main(["fit", str(rows), "--predictor", "two-buffer", "--loop", kind, *weights]) == 0
+    card = load_card("w", tmp_path)[0]
+    uniform = ScoreInterval.from_dict(card["score_interval_loop_uniform"])
+    adaptive = ScoreInterval.from_dict(card["score_interval_loop_adaptive"])
+    assert sum(uniform.counts) == sum(adaptive.counts) == 320
+    # the adaptive rows read 0.05 high, so their interval reaches further below the score
+    assert np.mean(adaptive.low) < np.mean(uniform.low) - 0.03
+    scorer = Scorer.from_pretrained("w", dir=tmp_path)
+    assert scorer.interval is not None and set(scorer.loop_intervals) == {"uniform", "adaptive"}
+    assert scorer.loop_intervals["adaptive"] == adaptive
+    assert Scorer.from_pretrained("w", dir=tmp_path, interval=None).loop_intervals == {}
+    capsys.readouterr()
+    fresh = _loop_rows_csv(tmp_path / "fresh.csv", 1)
+    assert coverage.main(["check", str(fresh), "--predictor", "two-buffer", "--loop", "adaptive", *weights]) == 0
+    assert "| all | 320 |" in capsys.readouterr().out
+    assert coverage.main(["cv", str(rows), "--predictor", "two-buffer", "--loop", "uniform"]) == 0
+
+
+def test_loop_interval_mistakes_are_one_line(tmp_path, capsys):
+    images = _images_csv(tmp_path / "images.csv", 0)
+    rows = _loop_rows_csv(tmp_path / "rows.csv", 0)
+    out = ["--out", str(tmp_path / "x.json")]
+    cases = [
+        (["fit", str(images), "--predictor", "m", "--loop", "uniform", *out], "is not a rows.csv of"),
+        (["fit", str(rows), "--predictor", "single", "--loop", "uniform", *out], "no rows of predictor 'single'"),
+        (["fit", str(rows), "--predictor", "two-buffer", "--loop", "uniform", "--ldr", *out], "two different"),
+    ]
+    for argv, message in cases:
+        assert coverage.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("python -m nriqa.eval.coverage: error:") and message in err and "\n" not in err
+    assert not (tmp_path / "x.json").exists()
+    with pytest.raises(ValueError, match="loop kinds"):
+        Scorer(create_model("fcnn_fast"), loop_intervals={"peer": ScoreInterval(0.9, (0.0, 1.0), (0.0,), (0.0,), (1,))})
+    with pytest.raises(TypeError, match="ScoreInterval"):
+        Scorer(create_model("fcnn_fast"), loop_intervals={"uniform": (0.0, 1.0)})

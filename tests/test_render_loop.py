@@ -13,6 +13,7 @@ mi = pytest.importorskip("mitsuba")
 
 from data_gen.plan import ImageTask, Job  # noqa: E402
 from data_gen.render import scene_dict  # noqa: E402
+from nriqa.inference.interval import ScoreInterval  # noqa: E402
 from nriqa.inference.scorer import Scorer  # noqa: E402
 from nriqa.models import create_model  # noqa: E402
 from nriqa.render import (  # noqa: E402
@@ -171,6 +172,28 @@ def test_render_until_sure_stops_on_the_low_end(scene, reference):
     # past map_spp the plain loop's prediction is the error model's: no low end there
     _, further = render_until(scene, oracle, 0.95, **kwargs)
     assert further[0]["low"] is not None and further[-1]["spp"] > 8 and further[-1]["low"] is None
+
+
+def _flat_interval(offset: float) -> ScoreInterval:
+    """An interval whose low end is the score plus ``offset`` in every band."""
+    return ScoreInterval(0.9, (0.0, 1.0), (offset,), (0.05,), (100,))
+
+
+def test_an_interval_calibrated_on_a_kind_of_loop_gives_that_loops_low_end(scene, reference):
+    # The oracle's own low end is 0.1 below its score; a loop interval for uniform loops puts it 0.2
+    # below in render_until, and leaves render_adaptive (placed by the map: "adaptive") on the result's.
+    oracle = CalibratedOracle(reference, 0.1)
+    oracle.loop_intervals = {"uniform": _flat_interval(-0.2)}
+    kwargs = dict(time_budget_s=60, spp_per_step=2, reference=reference, max_spp=512, max_overhead=None)
+    _, uniform = render_until(scene, oracle, 0.75, sure=True, **kwargs)
+    assert uniform[-1]["stop"] == "sure" and uniform[-1]["low"] >= 0.75
+    assert all(r["low"] == pytest.approx(r["predicted"] - 0.2) for r in uniform)
+    adaptive_kwargs = dict(total_spp=256, initial_spp=2, spp_per_step=1, tile=16, fraction=0.25, reference=reference)
+    _, adaptive = render_adaptive(scene, oracle, target_score=0.75, sure=True, max_overhead=None, **adaptive_kwargs)
+    assert all(r["low"] == pytest.approx(r["predicted"] - 0.1) for r in adaptive)
+    oracle.loop_intervals = {"adaptive": _flat_interval(-0.15)}
+    _, adaptive = render_adaptive(scene, oracle, target_score=0.75, sure=True, max_overhead=None, **adaptive_kwargs)
+    assert all(r["low"] == pytest.approx(r["predicted"] - 0.15) for r in adaptive)
 
 
 def test_render_until_sure_needs_a_calibrated_single_image_ssim_scorer(scene, scorer, reference):

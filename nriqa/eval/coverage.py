@@ -14,7 +14,11 @@ against ``true``). Three commands, one predictor at a time::
 
 ``--exclude-scene`` drops a scene's rows (e.g. one whose reference is suspect). ``--ldr`` makes ``fit`` and
 ``check`` use the card's interval for LDR input (``score_interval_ldr``: fit it on rows of ``nriqa-evaluate
---display ...`` runs), which the Scorer applies to images it takes as LDR. Tables are printed and,
+--display ...`` runs), which the Scorer applies to images it takes as LDR. ``--loop uniform|adaptive`` takes
+the ``rows.csv`` of ``benchmarks/adaptive_interval.py`` instead (every step of render loops of that kind;
+``--predictor single`` or ``two-buffer``, the latter the halves' score carried to the whole image) and the
+card's interval for that kind of loop (``score_interval_loop_<kind>``), whose low end the loops' sure stops
+use. Tables are printed and,
 with ``--out``, written as ``coverage.{csv,md}`` (``stops.{csv,md}``). Fitting and the interval itself:
 :class:`nriqa.inference.interval.ScoreInterval`.
 """
@@ -30,7 +34,7 @@ import numpy as np
 
 from nriqa.errors import NriqaError
 from nriqa.eval.paired import read_rows
-from nriqa.inference.interval import EDGES, ScoreInterval
+from nriqa.inference.interval import EDGES, LOOP_KINDS, ScoreInterval
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table, write_csv
 
@@ -58,6 +62,25 @@ def select(rows: list[dict], predictor: str, exclude: list[str] = ()) -> list[di
     if not out:
         raise CoverageError(f"no finite rows of predictor {predictor!r} left")
     return out
+
+
+def read_loop_rows(path: str | Path, kind: str) -> list[dict]:
+    """The rows of loops of ``kind`` in a ``rows.csv`` of ``benchmarks/adaptive_interval.py``, as evaluation rows
+    (``predictor`` the benchmark's scorer label, ``scene`` the family, ``mapped`` the loop's score)."""
+    import csv
+
+    path = Path(path)
+    try:
+        with path.open(newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as exc:
+        raise CoverageError(f"cannot read {path} ({exc.strerror}); give a rows.csv of adaptive_interval.py") from None
+    need = {"scorer", "loop", "family", "score", "true"}
+    if not rows or not need <= set(rows[0]):
+        raise CoverageError(
+            f"{path} is not a rows.csv of benchmarks/adaptive_interval.py (need columns {', '.join(sorted(need))})"
+        )
+    return [dict(r, predictor=r["scorer"], scene=r["family"], mapped=r["score"]) for r in rows if r["loop"] == kind]
 
 
 def _arrays(rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
@@ -211,6 +234,8 @@ def _load_interval(args: argparse.Namespace) -> ScoreInterval:
 
 
 def _card_key(args: argparse.Namespace) -> str:
+    if getattr(args, "loop", None):
+        return f"score_interval_loop_{args.loop}"
     return "score_interval_ldr" if args.ldr else "score_interval"
 
 
@@ -244,9 +269,16 @@ def build_parser() -> argparse.ArgumentParser:
         ("stops", "along each ladder of renders, stop on the score or on the interval's low end; where they end"),
     ):
         p = sub.add_parser(name, help=text)
-        p.add_argument("images", nargs="+", help="images.csv files of nriqa-evaluate runs")
+        p.add_argument("images", nargs="+", help="images.csv files of nriqa-evaluate runs (with --loop: rows.csv)")
         p.add_argument("--predictor", required=True, help="the predictor's name in the rows, e.g. unet_fast")
         p.add_argument("--exclude-scene", action="append", default=[], metavar="SCENE", help="leave its rows out")
+        if name != "stops":
+            p.add_argument(
+                "--loop",
+                choices=LOOP_KINDS,
+                default=None,
+                help="rows of render loops of this kind (adaptive_interval.py's rows.csv); its card key",
+            )
         if name in ("fit", "cv"):
             p.add_argument("--level", type=float, default=0.9, help="two-sided level (default 0.9)")
             p.add_argument("--min-count", type=int, default=30, help="fewest images in a band (default 30)")
@@ -278,7 +310,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
-        rows = [dict(r, _file=i) for i, f in enumerate(args.images) for r in read_rows(f)]
+        loop = getattr(args, "loop", None)
+        if loop and getattr(args, "ldr", False):
+            raise CoverageError("--loop and --ldr are two different intervals; give one")
+        read = (lambda f: read_loop_rows(f, loop)) if loop else read_rows
+        rows = [dict(r, _file=i) for i, f in enumerate(args.images) for r in read(f)]
         rows = select(rows, args.predictor, args.exclude_scene)
         if args.cmd == "fit":
             if not args.out and not args.weights:

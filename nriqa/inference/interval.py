@@ -29,10 +29,14 @@ import numpy as np
 
 from nriqa.errors import NriqaError
 
-__all__ = ["ScoreInterval", "IntervalError", "EDGES"]
+__all__ = ["ScoreInterval", "IntervalError", "EDGES", "LOOP_KINDS"]
 
 #: default band edges of the predicted score: finer where most renders end (near convergence)
 EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 0.98, 1.0)
+
+#: the render loops an interval can be calibrated on apart (``Scorer.loop_intervals``): samples spread
+#: evenly, or placed by the scorer's map
+LOOP_KINDS = ("uniform", "adaptive")
 
 
 class IntervalError(NriqaError):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Mapping
 
 import numpy as np
 import torch
@@ -24,7 +25,7 @@ from nriqa.core.ssim import FLAT_ROWS, WINDOW, flat_windows, may_be_flat
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
-from nriqa.inference.interval import ScoreInterval
+from nriqa.inference.interval import LOOP_KINDS, ScoreInterval
 
 __all__ = ["Scorer", "ScoreResult", "ScorerInputError"]
 
@@ -83,6 +84,11 @@ class Scorer:
         ldr_interval: the interval for images taken as LDR (display-referred input, e.g. PNGs from other
             pipelines), if it was calibrated apart (card ``score_interval_ldr``); ``None``: ``interval``
             serves both.
+        loop_intervals: intervals calibrated on the rows of render loops, by loop kind (``"uniform"``:
+            samples spread evenly; ``"adaptive"``: placed by the scorer's map), for the score a loop
+            rates (a two-buffer scorer's: the halves' score carried to the whole image). The loops'
+            sure stops use their low end where one is given (card ``score_interval_loop_uniform`` /
+            ``_adaptive``); other kinds keep the result's ``low``. Results of a call do not change.
 
     Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
     ``(B, 3, H, W)``; grayscale ``(H, W)`` (or one channel) is replicated to RGB, a fourth (alpha)
@@ -155,6 +161,7 @@ class Scorer:
         overlap: bool = False,
         interval: ScoreInterval | None = None,
         ldr_interval: ScoreInterval | None = None,
+        loop_intervals: Mapping[str, ScoreInterval] | None = None,
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -185,7 +192,11 @@ class Scorer:
         self.stride = int(stride)
         self.quantity = "ssim" if output == "map" else "mae"
         self.exact_flat = bool(exact_flat) and output == "map"
-        for given in (interval, ldr_interval):
+        loop_intervals = dict(loop_intervals or {})
+        unknown = set(loop_intervals) - set(LOOP_KINDS)
+        if unknown:
+            raise ValueError(f"loop intervals are for loop kinds {list(LOOP_KINDS)}, got {sorted(unknown)}")
+        for given in (interval, ldr_interval, *loop_intervals.values()):
             if given is not None and not isinstance(given, ScoreInterval):
                 raise TypeError(f"a score interval must be a ScoreInterval, got {type(given).__name__}")
             if given is not None and self.quantity != "ssim":
@@ -194,6 +205,7 @@ class Scorer:
             raise ValueError("ldr_interval refines interval for LDR input; give interval too")
         self.interval = interval
         self.ldr_interval = ldr_interval
+        self.loop_intervals = loop_intervals
 
     @property
     def higher_is_better(self) -> bool:
@@ -205,8 +217,9 @@ class Scorer:
         """A scorer with the shipped weights ``name`` (:func:`nriqa.inference.pretrained.load_pretrained`).
 
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
-        The card's calibrated ``score_interval`` (and ``score_interval_ldr``), if it has them, become the
-        scorer's ``interval`` (and ``ldr_interval``) unless given (``interval=None`` turns both off).
+        The card's calibrated ``score_interval`` (and ``score_interval_ldr``, ``score_interval_loop_uniform``,
+        ``score_interval_loop_adaptive``), if it has them, become the scorer's ``interval`` (and
+        ``ldr_interval``, ``loop_intervals``) unless given (``interval=None`` turns them all off).
         """
         from nriqa.inference import DEFAULT_WEIGHTS
         from nriqa.inference.pretrained import PretrainedError, load_card, net_from_card
@@ -219,6 +232,8 @@ class Scorer:
                 for key, arg in (("score_interval", "interval"), ("score_interval_ldr", "ldr_interval")):
                     entry = card.get(key)
                     kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
+                loops = {k: card[f"score_interval_loop_{k}"] for k in LOOP_KINDS if f"score_interval_loop_{k}" in card}
+                kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
             except ValueError as exc:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"

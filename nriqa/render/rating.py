@@ -157,11 +157,16 @@ class Rater:
             rates nothing (``predicted`` stays ``None``).
         probes: when a probe stands in for the image.
         clock: the loop's clock (scoring time, cadence).
-        needs_map: the placement needs a map: the first row is rated whatever the cadence.
+        needs_map: the placement needs a map: the first row is rated whatever the cadence. It places
+            samples by the map, so the loop is of kind ``"adaptive"`` (else ``"uniform"``): where the
+            scorer has an interval calibrated on that kind of loop (``Scorer.loop_intervals``), ``low`` is
+            its low end; else the result's.
     """
 
     def __init__(self, scorer, probes: Probes, clock: Clock, needs_map: bool):
         self.scorer, self.probes, self.clock, self.needs_map = scorer, probes, clock, needs_map
+        kind = "adaptive" if needs_map else "uniform"
+        self.loop_interval = (getattr(scorer, "loop_intervals", None) or {}).get(kind)
         self.model = ErrorModel(scorer.higher_is_better) if scorer is not None else None
         self.higher_is_better = scorer.higher_is_better if scorer is not None else True
         self.needs_twin = needs_twin(scorer)
@@ -196,6 +201,8 @@ class Rater:
                 result = self._rate_image(film)
                 self.predicted = result.score
                 self.low = getattr(result, "low", None)
+                if self.loop_interval is not None:
+                    self.low = self.loop_interval(result.score)[0]
                 self.model.add(result.map, film.count.copy())
         if beyond and self.model.noise is not None:
             self.predicted, self.low = self.model.predict(film.count), None
