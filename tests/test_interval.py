@@ -106,6 +106,22 @@ def test_shipped_cards_carry_a_90_percent_interval_fitted_on_unlearnt_images(nam
     assert all(lo <= 0.0 <= hi for lo, hi in zip(iv.low, iv.high))
 
 
+@pytest.mark.parametrize(
+    "name, kinds, level",
+    [("unet_fast", {"adaptive"}, 0.9), ("dual_fast", {"uniform", "adaptive"}, 0.96), ("fcnn_fast", set(), None)],
+)
+def test_shipped_loop_intervals_are_the_rules_fits_on_loop_rows(name, kinds, level):
+    # rules LI and LI2 (stop 45, docs/results/render_compare.md): fitted on every step of render loops
+    scorer = Scorer.from_pretrained(name)
+    assert set(scorer.loop_intervals) == kinds
+    for iv in scorer.loop_intervals.values():
+        assert iv.level == level and min(iv.counts) >= 30 and "adaptive_interval.py" in iv.source
+        assert sum(iv.counts) == (3128 if name == "unet_fast" else 3910)
+        assert all(lo <= 0.0 for lo in iv.low)  # the low end is never above the score
+    if name == "dual_fast":  # the halves' loop interval reaches further below than the twin's, carried
+        assert min(scorer.loop_intervals["uniform"].low) < min(scorer.interval.low) / 2
+
+
 def test_the_default_scorer_gives_ordered_ends_for_every_kind_of_input():
     scorer = Scorer.from_pretrained()
     rng = np.random.default_rng(0)
