@@ -18,9 +18,8 @@ against ``true``). Three commands, one predictor at a time::
 the ``rows.csv`` of ``benchmarks/adaptive_interval.py`` instead (every step of render loops of that kind;
 ``--predictor single`` or ``two-buffer``, the latter the halves' score carried to the whole image) and the
 card's interval for that kind of loop (``score_interval_loop_<kind>``), whose low end the loops' sure stops
-use. Tables are printed and,
-with ``--out``, written as ``coverage.{csv,md}`` (``stops.{csv,md}``). Fitting and the interval itself:
-:class:`nriqa.inference.interval.ScoreInterval`.
+use (``fit``, ``check`` and ``cv``). Tables are printed and, with ``--out``, written as ``coverage.{csv,md}``
+(``stops.{csv,md}``). Fitting and the interval itself: :class:`nriqa.inference.interval.ScoreInterval`.
 """
 
 from __future__ import annotations
