@@ -120,6 +120,8 @@ class NRIQADataModule(L.LightningDataModule):
         self.val_pairs: list[ImagePair] = []
         self.train_set: TrainPatches | None = None
         self.val_set: TensorDataset | None = None
+        # Where the image pairs come from: load_pairs, or a PairCache shared by several folds (not a setting).
+        self.pair_source = load_pairs
 
     def setup(self, stage: str | None = None) -> None:
         """Read the manifest, split the fold, tone-map the images (once) and build the patch sets.
@@ -129,8 +131,8 @@ class NRIQADataModule(L.LightningDataModule):
         if self.train_set is not None:
             return
         train, val = split_by_scene(only_scenes(read_datasets(self.data_dir), self.scenes), self.val_scene)
-        self.train_pairs = load_pairs(train, linear=self.display is not None, twins=self.twins)
-        self.val_pairs = load_pairs(val, twins=self.twins)
+        self.train_pairs = self.pair_source(train, linear=self.display is not None, twins=self.twins)
+        self.val_pairs = self.pair_source(val, twins=self.twins)
         self.train_set = TrainPatches(
             self.train_pairs if self.device is None else pairs_to(self.train_pairs, self.device),
             self.patch_size,

@@ -81,6 +81,29 @@ def load_pairs(records: list[Record], linear: bool = False, twins: bool = False)
     return pairs
 
 
+class PairCache:
+    """:func:`load_pairs` that keeps what it loaded: many folds of one dataset share each image in memory.
+
+    Call it as :func:`load_pairs`; a record already loaded alike (same ``linear``, ``twins``) is not read
+    again, and the pairs returned are the same objects (:mod:`nriqa.training.stacked` builds every fold's
+    training set from one cache).
+    """
+
+    def __init__(self) -> None:
+        self.pairs: dict[tuple[str, bool, bool], ImagePair] = {}
+
+    def __call__(self, records: list[Record], linear: bool = False, twins: bool = False) -> list[ImagePair]:
+        """The pairs of ``records`` as :func:`load_pairs` gives them; only the records not yet loaded are read."""
+        missing = [r for r in records if (r.path, linear, twins) not in self.pairs]
+        if missing:
+            if twins:  # load_pairs looks a twin up among the records it is given
+                wanted, have = {r.twin for r in missing}, {r.path for r in missing}
+                missing += [r for r in records if r.id in wanted and r.path not in have]
+            for pair in load_pairs(missing, linear, twins):
+                self.pairs.setdefault((pair.record.path, linear, twins), pair)
+        return [self.pairs[(r.path, linear, twins)] for r in records]
+
+
 def pairs_to(pairs: list[ImagePair], device: str | torch.device) -> list[ImagePair]:
     """The same pairs with their images on ``device``; a reference shared by many pairs is moved once."""
     moved: dict[int, Tensor] = {}

@@ -13,6 +13,11 @@ Each model class exposes two class attributes that callers (the Scorer, tiling, 
 Map models also expose ``align``: tiles must start at multiples of it for tiled == untiled
 (1 for plain convolutional models, 2 for ``fcnn_fast``, which works on 2x2 pixel blocks).
 
+The fast map models (``fcnn_fast``, ``unet_fast``, ``dual_fast``) lay their activations out
+channels-last (oneDNN's CPU convolutions run faster so) and read that layout from their
+``memory_format`` attribute; the outputs do not depend on it. :mod:`nriqa.training.stacked` sets it to
+``torch.contiguous_format``: ``torch.func.vmap`` cannot lay out a batched tensor channels-last.
+
 Examples:
     >>> from nriqa.models import create_model, list_models
     >>> list_models("fcnn*")

@@ -73,7 +73,8 @@ class DualFast(nn.Module):
         self.min_size = window // 2 + 1 + (window // 2 + 1) % s
         init_keras_(self)
         nn.init.zeros_(self.head.weight)  # untrained == the corrected dual buffer
-        self.to(memory_format=torch.channels_last)
+        self.memory_format = torch.channels_last
+        self.to(memory_format=self.memory_format)
 
     def forward(self, x: Tensor) -> Tensor:
         """``x``: ``(B, 6, H, W)``, the image then its twin; returns ``(B,1,H,W)``."""
@@ -90,7 +91,7 @@ class DualFast(nn.Module):
         ph, pw = -h % s, -w % s
         if ph or pw:
             feats = F.pad(feats, (0, pw, 0, ph))
-        y = self.trunk(F.pixel_unshuffle(feats, s).contiguous(memory_format=torch.channels_last))
+        y = self.trunk(F.pixel_unshuffle(feats, s).contiguous(memory_format=self.memory_format))
         delta = F.pixel_shuffle(self.head(y), s)[..., :h, :w]
         return F.relu(d + delta).contiguous()
 

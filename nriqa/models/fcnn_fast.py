@@ -55,7 +55,8 @@ class FCNNFast(nn.Module):
         self.receptive_field = s * (2 * n3x3 + 1)
         init_keras_(self)
         # oneDNN's CPU convolutions run faster on NHWC than NCHW at these widths.
-        self.to(memory_format=torch.channels_last)
+        self.memory_format = torch.channels_last
+        self.to(memory_format=self.memory_format)
 
     def forward(self, x: Tensor) -> Tensor:
         """``x``: ``(B,3,H,W)``; returns ``(B,1,H,W)``."""
@@ -65,7 +66,7 @@ class FCNNFast(nn.Module):
         ph, pw = -h % s, -w % s
         if ph or pw:
             x = F.pad(x, (0, pw, 0, ph))
-        y = self.net(x.contiguous(memory_format=torch.channels_last))
+        y = self.net(x.contiguous(memory_format=self.memory_format))
         return y[..., :h, :w].contiguous()
 
 

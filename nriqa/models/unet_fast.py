@@ -82,7 +82,8 @@ class UNetFast(nn.Module):
         )
         self.head = nn.Sequential(nn.Conv2d(widths[0], 4, 1), nn.PixelShuffle(2), nn.ReLU())
         init_keras_(self)
-        self.to(memory_format=torch.channels_last)
+        self.memory_format = torch.channels_last
+        self.to(memory_format=self.memory_format)
 
     def forward(self, x: Tensor) -> Tensor:
         """``x``: ``(B, in_channels, H, W)``; returns ``(B,1,H,W)``."""
@@ -92,7 +93,7 @@ class UNetFast(nn.Module):
         ph, pw = -h % self.align, -w % self.align
         if ph or pw:
             x = F.pad(x, (0, pw, 0, ph))
-        skips = [self.stem(F.pixel_unshuffle(x, 2).contiguous(memory_format=torch.channels_last))]
+        skips = [self.stem(F.pixel_unshuffle(x, 2).contiguous(memory_format=self.memory_format))]
         for down in self.down:
             skips.append(down(skips[-1]))
         y = skips.pop()

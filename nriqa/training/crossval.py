@@ -74,8 +74,18 @@ def run_fold(cfg: DictConfig, scene: str, fold_dir: Path) -> dict:
         if last.is_file():
             cfg.ckpt_path = str(last)
     metrics, objects = train(cfg)
-    dm = objects["datamodule"]
-    net = load_net_from_checkpoint(objects["best_ckpt"])
+    trainer = objects["trainer"]
+    run = {"epochs": trainer.current_epoch, "steps": trainer.global_step, "seconds": objects["seconds"]}
+    return fold_result(cfg, scene, fold_dir, objects["datamodule"], objects["best_ckpt"], run, metrics)
+
+
+def fold_result(cfg: DictConfig, scene: str, fold_dir: Path, dm, ckpt: str, run: dict, metrics: dict) -> dict:
+    """Evaluate fold ``scene``'s checkpoint ``ckpt`` on its datamodule ``dm``; write and return its result.
+
+    ``run``: ``{"epochs", "steps", "seconds"}`` of its training (and anything else to record);
+    ``metrics``: the last logged ones.
+    """
+    net = load_net_from_checkpoint(ckpt)
     n = cfg.crossval.get("eval_patches") or dm.val_patches
     train_stats = patch_correlations(net, dm.eval_dataloader(dm.train_eval_set(n)))
     val_stats = patch_correlations(net, dm.eval_dataloader(dm.val_set))
@@ -86,10 +96,10 @@ def run_fold(cfg: DictConfig, scene: str, fold_dir: Path) -> dict:
         "val": val_stats,
         "image": image_stats,
         "images": rows,
-        "epochs": int(objects["trainer"].current_epoch),
-        "steps": int(objects["trainer"].global_step),
-        "seconds": objects["seconds"],
-        "best_ckpt": objects["best_ckpt"],
+        **run,
+        "epochs": int(run["epochs"]),
+        "steps": int(run["steps"]),
+        "best_ckpt": str(ckpt),
         "last_logged": metrics,
     }
     write_text_atomic(fold_dir / RESULT_NAME, json.dumps(result, indent=1) + "\n")
@@ -151,16 +161,28 @@ def write_reports(out_dir: Path, results: list[dict], title: str) -> None:
 def crossval(cfg: DictConfig) -> list[dict]:
     """Run (or resume) every fold of ``cfg`` and write the reports; returns the fold results."""
     out_dir = Path(cfg.crossval.out_dir)
+    scenes = fold_scenes(cfg)
+    fresh: dict[str, dict] = {}
+    if cfg.crossval.get("stacked"):
+        from nriqa.training.stacked import train_stacked  # torch.func; only this path needs it
+
+        todo = [s for s in scenes if not (out_dir / "folds" / s / RESULT_NAME).is_file()]
+        if todo:
+            print(f"folds {', '.join(todo)}: training side by side (crossval.stacked)")
+            fresh = train_stacked(cfg, todo, out_dir)
     results = []
-    for scene in fold_scenes(cfg):
+    for scene in scenes:
         fold_dir = out_dir / "folds" / scene
         done = fold_dir / RESULT_NAME
-        if done.is_file():
+        if scene in fresh:
+            result = fresh[scene]
+        elif done.is_file():
             print(f"fold {scene}: done, skipped ({done})")
             results.append(json.loads(done.read_text(encoding="utf-8")))
             continue
-        print(f"fold {scene}: training")
-        result = run_fold(cfg, scene, fold_dir)
+        else:
+            print(f"fold {scene}: training")
+            result = run_fold(cfg, scene, fold_dir)
         val, image, took = result["val"]["pcc"], result["image"]["pcc"], result["seconds"]
         print(f"fold {scene}: val PCC {val:.3f}, image PCC {image:.3f}, {took:.0f} s, {result['steps']} steps")
         results.append(result)
