@@ -14,6 +14,9 @@
 #   is slower with many folds sharing it: measured in stop 45 on one H100, 17 folds at once, 165 ms a step against
 #   stop 37's 68 with CPU patches. A fold that fails within RETRY_WITHIN=180 seconds with them on DEVICE runs
 #   again with them on the CPU)
+#   STACKED= (1: every fold in one process, side by side: crossval.stacked, nriqa.training.stacked; one GPU
+#   step serves all folds, WORKERS=nproc-1 loader processes make the patches on the CPU; PARALLEL, DEVICE and
+#   RETRY_WITHIN do not apply, and FOLD_TIME cuts the run of all folds)
 #   SCENES= (space-separated families; default every family of DATA)  EXTRA= (more overrides for every fold)
 #   SITE= (a tarball of scripts/gpu/pack_site.sh to unpack)  WHEELS= (a folder of wheels to install instead)
 #   PY=python3
@@ -69,15 +72,32 @@ fold() { # SCENE
   fi
   echo "[$(el)] fold $1 rc=$rc $(grep -h "fold $1:" "$W/logs/fold_$1.txt" | tail -1)"
 }
-pids=()  # a bare `wait` would also wait for the tee above
+stacked() { # every fold in this one process, side by side (crossval.stacked); WORKERS loader processes make patches
+  # shellcheck disable=SC2086  # EXTRA is a list of overrides
+  "$PY" -m nriqa.cli.crossval experiment="${EXPERIMENT:-unet_fast}" trainer="${TRAINER:-gpu}" "paths.data_dir=[$DATA]" \
+    data.patch_size=64 data.batch_size=8 schedule.map.epochs="${EPOCHS:-60}" seed="${SEED:-12345}" \
+    "crossval.scenes=[$(echo $SCENES | tr ' ' ,)]" crossval.out_dir="$W/cv/stacked" crossval.stacked=true \
+    data.num_workers="${WORKERS:-$(($(nproc) > 2 ? $(nproc) - 1 : 1))}" trainer.enable_progress_bar=false \
+    +trainer.max_time="${FOLD_TIME:-00:00:06:00}" ${EXTRA:-} >"$W/logs/stacked.txt" 2>&1
+  echo "[$(el)] stacked rc=$? $(grep -h '^stacked: epoch' "$W/logs/stacked.txt" | tail -1)"
+  grep -h "^fold .*steps" "$W/logs/stacked.txt"
+}
+if [ -n "${STACKED:-}" ]; then
+  stacked
+else
+  pids=()  # a bare `wait` would also wait for the tee above
+  for s in $SCENES; do
+    fold "$s" &
+    pids+=($!)
+    if [ -n "${PARALLEL:-}" ] && [ ${#pids[@]} -ge "$PARALLEL" ]; then wait "${pids[@]}"; pids=(); fi
+  done
+  [ ${#pids[@]} -eq 0 ] || wait "${pids[@]}"
+fi
 for s in $SCENES; do
-  fold "$s" &
-  pids+=($!)
-  if [ -n "${PARALLEL:-}" ] && [ ${#pids[@]} -ge "$PARALLEL" ]; then wait "${pids[@]}"; pids=(); fi
-done
-[ ${#pids[@]} -eq 0 ] || wait "${pids[@]}"
-for s in $SCENES; do
-  if [ -d "$W/cv/$s/folds/$s" ]; then ln -s "$W/cv/$s/folds/$s" "$W/all/folds/$s"; else echo "fold $s left no run"; tail -3 "$W/logs/fold_$s.txt"; fi
+  run=$W/cv/$s/folds/$s
+  [ -n "${STACKED:-}" ] && run=$W/cv/stacked/folds/$s
+  if [ -d "$run" ]; then ln -s "$run" "$W/all/folds/$s"; else
+    echo "fold $s left no run"; tail -3 "$W/logs/fold_$s.txt" "$W/logs/stacked.txt" 2>/dev/null; fi
 done
 echo "[$(el)] folds done"
 # shellcheck disable=SC2086  # SCENES is a list
@@ -96,6 +116,6 @@ for p in pathlib.Path(sys.argv[1]).glob("cv/*/folds/*/checkpoints/*.ckpt"):
     torch.save({k: c[k] for k in ("state_dict", "hyper_parameters", "epoch", "global_step", "pytorch-lightning_version") if k in c}, p)
 P
 pack=$W/loso_runs.tgz
-tar -C "$W" --exclude='*/tensorboard/*' -czf "$pack" cv logs $([ -d "$W/eval" ] && echo eval)
+tar -C "$W" --exclude='*/tensorboard/*' --exclude='*/stacked_state.pt' -czf "$pack" cv logs $([ -d "$W/eval" ] && echo eval)
 if [ "$(stat -c %s "$pack")" -gt $((15 * 1048576)) ]; then split -b 15M -d "$pack" "$OUT/loso_runs.tgz.part"; else cp "$pack" "$OUT/"; fi
 echo "[$(el)] packed $(du -h "$pack" | cut -f1): $(cd "$OUT" && echo loso_runs.tgz*)"
