@@ -10,6 +10,10 @@ then writes into ``crossval.out_dir``:
 * ``folds/<scene>/`` -- that fold's run: checkpoints, CSV/TensorBoard logs,
   ``training_curves.png``, and ``result.json`` (its presence marks the fold done: a rerun skips it;
   a fold killed mid-training resumes from its ``last.ckpt``).
+
+With ``crossval.stacked=true`` the folds not yet done train side by side in this one process
+(:mod:`nriqa.training.stacked`: the same training, for a GPU shared by every fold), then are evaluated
+as here.
 """
 
 from __future__ import annotations
