@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from nriqa.eval import coverage
-from nriqa.inference.interval import EDGES, IntervalError, ScoreInterval
+from nriqa.inference.interval import EDGES, LOOP_KINDS, IntervalError, ScoreInterval, loop_card_key
 from nriqa.inference.pretrained import PretrainedError, load_card, load_pretrained, save_pretrained, update_card
 from nriqa.inference.scorer import Scorer
 from nriqa.models import create_model
@@ -372,3 +372,9 @@ def test_loop_interval_mistakes_are_one_line(tmp_path, capsys):
         Scorer(create_model("fcnn_fast"), loop_intervals={"peer": ScoreInterval(0.9, (0.0, 1.0), (0.0,), (0.0,), (1,))})
     with pytest.raises(TypeError, match="ScoreInterval"):
         Scorer(create_model("fcnn_fast"), loop_intervals={"uniform": (0.0, 1.0)})
+
+
+def test_loop_card_keys_name_each_loop_kind_once():
+    assert [loop_card_key(k) for k in LOOP_KINDS] == ["score_interval_loop_uniform", "score_interval_loop_adaptive"]
+    with pytest.raises(ValueError, match="loop kinds"):
+        loop_card_key("tiles")

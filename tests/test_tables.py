@@ -3,7 +3,9 @@
 import csv
 import math
 
-from nriqa.io.tables import markdown_table, write_csv
+import pytest
+
+from nriqa.io.tables import markdown_table, read_csv, write_csv
 
 
 def test_markdown_table_formats_floats_booleans_missing_and_undefined_cells():
@@ -19,3 +21,15 @@ def test_csv_keeps_nan_for_machines(tmp_path):
     write_csv(tmp_path / "t.csv", [{"name": "b", "pcc": math.nan}], ["name", "pcc"])
     (row,) = list(csv.DictReader((tmp_path / "t.csv").open()))
     assert math.isnan(float(row["pcc"]))
+
+
+def test_read_csv_checks_the_columns_and_says_what_file_it_wanted(tmp_path):
+    write_csv(tmp_path / "t.csv", [{"name": "b", "pcc": 0.5}], ["name", "pcc"])
+    assert read_csv(tmp_path / "t.csv", {"name"}, "a table") == [{"name": "b", "pcc": "0.5"}]
+    with pytest.raises(ValueError, match=r"t.csv is not a table \(need columns name, srocc\)"):
+        read_csv(tmp_path / "t.csv", {"name", "srocc"}, "a table")
+    with pytest.raises(ValueError, match=r"cannot read .*nothing.csv \(No such file or directory\); give a table"):
+        read_csv(tmp_path / "nothing.csv", {"name"}, "a table")
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(ValueError, match="empty.csv is not a table"):
+        read_csv(tmp_path / "empty.csv", {"name"}, "a table")

@@ -33,9 +33,9 @@ import numpy as np
 
 from nriqa.errors import NriqaError
 from nriqa.eval.paired import read_rows
-from nriqa.inference.interval import EDGES, LOOP_KINDS, ScoreInterval
+from nriqa.inference.interval import EDGES, LOOP_KINDS, ScoreInterval, loop_card_key
 from nriqa.io.atomic import write_text_atomic
-from nriqa.io.tables import markdown_table, write_csv
+from nriqa.io.tables import markdown_table, read_csv, write_csv
 
 COLUMNS = ["group", "n", "coverage", "below", "above", "width", "bias"]
 STOP_COLUMNS = ["target", "rule", "ladders", "stopped", "at or above", "true at the stop", "spp over the truth's"]
@@ -66,19 +66,11 @@ def select(rows: list[dict], predictor: str, exclude: list[str] = ()) -> list[di
 def read_loop_rows(path: str | Path, kind: str) -> list[dict]:
     """The rows of loops of ``kind`` in a ``rows.csv`` of ``benchmarks/adaptive_interval.py``, as evaluation rows
     (``predictor`` the benchmark's scorer label, ``scene`` the family, ``mapped`` the loop's score)."""
-    import csv
-
-    path = Path(path)
     try:
-        with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as exc:
-        raise CoverageError(f"cannot read {path} ({exc.strerror}); give a rows.csv of adaptive_interval.py") from None
-    need = {"scorer", "loop", "family", "score", "true"}
-    if not rows or not need <= set(rows[0]):
-        raise CoverageError(
-            f"{path} is not a rows.csv of benchmarks/adaptive_interval.py (need columns {', '.join(sorted(need))})"
-        )
+        need = {"scorer", "loop", "family", "score", "true"}
+        rows = read_csv(path, need, "a rows.csv of benchmarks/adaptive_interval.py")
+    except ValueError as exc:
+        raise CoverageError(str(exc)) from None
     return [dict(r, predictor=r["scorer"], scene=r["family"], mapped=r["score"]) for r in rows if r["loop"] == kind]
 
 
@@ -234,7 +226,7 @@ def _load_interval(args: argparse.Namespace) -> ScoreInterval:
 
 def _card_key(args: argparse.Namespace) -> str:
     if getattr(args, "loop", None):
-        return f"score_interval_loop_{args.loop}"
+        return loop_card_key(args.loop)
     return "score_interval_ldr" if args.ldr else "score_interval"
 
 

@@ -18,7 +18,6 @@ an earlier evaluation.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import sys
 from pathlib import Path
@@ -28,7 +27,7 @@ import numpy as np
 from nriqa.core.correlation import check_bootstrap, percentile_bounds
 from nriqa.errors import NriqaError
 from nriqa.io.atomic import write_text_atomic
-from nriqa.io.tables import markdown_table, write_csv
+from nriqa.io.tables import markdown_table, read_csv, write_csv
 
 RESAMPLES = 2000
 LEVEL = 0.95
@@ -116,17 +115,11 @@ def write_paired(out: Path, table: list[dict]) -> None:
 
 def read_rows(path: str | Path) -> list[dict]:
     """The rows of an ``images.csv`` written by ``nriqa-evaluate``."""
-    path = Path(path)
-    try:
-        with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as exc:
-        raise PairedError(
-            f"cannot read {path} ({exc.strerror}); give the images.csv an nriqa-evaluate run wrote"
-        ) from None
     need = {"predictor", "id", "scene", "variant", "true", "mapped"}
-    if not rows or not need <= set(rows[0]):
-        raise PairedError(f"{path} is not an nriqa-evaluate images.csv (need columns {', '.join(sorted(need))})")
+    try:
+        rows = read_csv(path, need, "an nriqa-evaluate images.csv")
+    except ValueError as exc:
+        raise PairedError(str(exc)) from None
     for r in rows:
         for key in ("true", "mapped"):
             try:

@@ -29,7 +29,7 @@ import numpy as np
 
 from nriqa.errors import NriqaError
 
-__all__ = ["ScoreInterval", "IntervalError", "EDGES", "LOOP_KINDS"]
+__all__ = ["ScoreInterval", "IntervalError", "EDGES", "LOOP_KINDS", "loop_card_key"]
 
 #: default band edges of the predicted score: finer where most renders end (near convergence)
 EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 0.98, 1.0)
@@ -37,6 +37,13 @@ EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 0.98, 1.0)
 #: the render loops an interval can be calibrated on apart (``Scorer.loop_intervals``): samples spread
 #: evenly, or placed by the scorer's map
 LOOP_KINDS = ("uniform", "adaptive")
+
+
+def loop_card_key(kind: str) -> str:
+    """The model card's key of the interval calibrated on render loops of ``kind`` (one of :data:`LOOP_KINDS`)."""
+    if kind not in LOOP_KINDS:
+        raise ValueError(f"loop intervals are for loop kinds {list(LOOP_KINDS)}, got {kind!r}")
+    return f"score_interval_loop_{kind}"
 
 
 class IntervalError(NriqaError):

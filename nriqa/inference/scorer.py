@@ -25,7 +25,7 @@ from nriqa.core.ssim import FLAT_ROWS, WINDOW, flat_windows, may_be_flat
 from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
-from nriqa.inference.interval import LOOP_KINDS, ScoreInterval
+from nriqa.inference.interval import LOOP_KINDS, ScoreInterval, loop_card_key
 
 __all__ = ["Scorer", "ScoreResult", "ScorerInputError"]
 
@@ -232,7 +232,7 @@ class Scorer:
                 for key, arg in (("score_interval", "interval"), ("score_interval_ldr", "ldr_interval")):
                     entry = card.get(key)
                     kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
-                loops = {k: card[f"score_interval_loop_{k}"] for k in LOOP_KINDS if f"score_interval_loop_{k}" in card}
+                loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
                 kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
             except ValueError as exc:
                 raise PretrainedError(

@@ -36,6 +36,23 @@ def write_csv(path: str | os.PathLike, rows: list[dict], columns: list[str] | No
     write_text_atomic(path, buf.getvalue())
 
 
+def read_csv(path: str | os.PathLike, need: set[str], what: str) -> list[dict]:
+    """The rows of the CSV file ``path`` as dicts of strings, checked to hold the columns ``need``.
+
+    Raises:
+        ValueError: the file cannot be read, or is empty or lacks a column; the one-line message names
+            the file and ``what`` it should be (e.g. "an nriqa-evaluate images.csv").
+    """
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as exc:
+        raise ValueError(f"cannot read {path} ({exc.strerror}); give {what}") from None
+    if not rows or not need <= set(rows[0]):
+        raise ValueError(f"{path} is not {what} (need columns {', '.join(sorted(need))})")
+    return rows
+
+
 def markdown_table(rows: Sequence[Mapping | Sequence], columns: list[str], digits: int = 3) -> str:
     """A GitHub Markdown table of ``rows`` under the header ``columns``, ending in a newline.
 
