@@ -7,6 +7,8 @@ import sys
 import tarfile
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "scripts" / "gpu" / "loso.sh"
 
@@ -82,3 +84,19 @@ def test_stacked_trains_every_fold_in_one_process_and_packs_no_state(tmp_path, s
     assert any(n.endswith("stacked/folds/alpha/checkpoints/last.ckpt") for n in names)
     assert any(n.endswith("stacked/folds/beta/checkpoints/last.ckpt") for n in names)
     assert not any(n.endswith("stacked_state.pt") for n in names)
+
+
+def test_render_makes_the_slice_first_and_packs_its_logs(tmp_path):
+    pytest.importorskip("mitsuba")
+    settings = dict(
+        RENDER="1", BACKEND="scalar_rgb", JOBS="1", RES="64", TOP="2", STAGES="1", RENDER_SCENES="[cornell,door]"
+    )
+    proc = run_script(tmp_path, tmp_path / "slice", STACKED="1", WORKERS="0", SCENES="", **settings)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    log = (tmp_path / "out" / "loso.log").read_text()
+    assert "render rc=0" in log and "stage variants=1 rc=0" in log and "dataset: 1 variants" in log
+    assert "fold cornell: val PCC" in log and "fold door: val PCC" in log and "evaluate rc=0" in log
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["loso.log", "loso_runs.tgz"]
+    with tarfile.open(tmp_path / "out" / "loso_runs.tgz") as tar:
+        names = tar.getnames()
+    assert "render/device.log" in names and "render/manifest.json" in names

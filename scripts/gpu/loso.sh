@@ -17,6 +17,9 @@
 #   STACKED= (1: every fold in one process, side by side: crossval.stacked, nriqa.training.stacked; one GPU
 #   step serves all folds, WORKERS=nproc-1 loader processes make the patches on the CPU; PARALLEL, DEVICE and
 #   RETRY_WITHIN do not apply, and FOLD_TIME cuts the run of all folds)
+#   RENDER= (1: where DATA holds no dataset, render one there first with scripts/gpu/render_train.sh and no runs:
+#   its settings SEED, STAGES, RES, TOP, BACKEND, JOBS, RENDER_END apply, RENDER_SCENES=[a,b] its scenes; the
+#   full SITE, mitsuba included; its logs and manifest go into the pack)
 #   SCENES= (space-separated families; default every family of DATA)  EXTRA= (more overrides for every fold)
 #   SITE= (a tarball of scripts/gpu/pack_site.sh to unpack)  WHEELS= (a folder of wheels to install instead)
 #   PY=python3
@@ -42,12 +45,21 @@ elif [ -n "${WHEELS:-}" ]; then
 else
   export PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH}
 fi
+if [ -n "${RENDER:-}" ] && [ ! -f "$DATA/manifest.json" ]; then
+  # Render the slice here first: scripts/gpu/render_train.sh without runs (its settings: SEED, STAGES, RES, TOP,
+  # BACKEND, JOBS, RENDER_END; RENDER_SCENES for its scenes). Its logs go into the pack, not into OUT.
+  echo "[$(el)] rendering $DATA (scripts/gpu/render_train.sh)"
+  rm -rf "${W}_render"
+  OUT=${W}_render DATA=$DATA SITE='' PY=$PY SCENES=${RENDER_SCENES:-} bash scripts/gpu/render_train.sh >/dev/null 2>&1
+  echo "[$(el)] render rc=$?: $(grep -h 'stage variants\|gate rc\|dataset:' "${W}_render/device.log" 2>/dev/null | tr '\n' ';')"
+fi
 [ -f "$DATA/manifest.json" ] || { echo "no dataset at $DATA (manifest.json missing): carry one or render it first"; exit 2; }
 echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(nproc --all) cores"
 "$PY" -c "import torch, lightning, hydra, OpenEXR, kornia; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" ||
   { echo "the packages are missing: give SITE or WHEELS"; exit 2; }
 SCENES=${SCENES:-$("$PY" -c "import json, sys; print(*sorted({r['scene'] for r in json.load(open(sys.argv[1]))['records']}))" "$DATA/manifest.json")}
 rm -rf "$W" && mkdir -p "$W/all/folds" "$W/logs"
+if [ -d "${W}_render" ]; then mv "${W}_render" "$W/render"; fi
 DEV=${DEVICE:-}
 echo "[$(el)] folds: $SCENES; ${PARALLEL:-all} at a time"
 train_fold() { # SCENE DEVICE: one fold, patches made on DEVICE (empty: on the CPU)
@@ -116,6 +128,7 @@ for p in pathlib.Path(sys.argv[1]).glob("cv/*/folds/*/checkpoints/*.ckpt"):
     torch.save({k: c[k] for k in ("state_dict", "hyper_parameters", "epoch", "global_step", "pytorch-lightning_version") if k in c}, p)
 P
 pack=$W/loso_runs.tgz
-tar -C "$W" --exclude='*/tensorboard/*' --exclude='*/stacked_state.pt' -czf "$pack" cv logs $([ -d "$W/eval" ] && echo eval)
+tar -C "$W" --exclude='*/tensorboard/*' --exclude='*/stacked_state.pt' -czf "$pack" cv logs $([ -d "$W/eval" ] && echo eval) \
+  $([ -d "$W/render" ] && echo render)
 if [ "$(stat -c %s "$pack")" -gt $((15 * 1048576)) ]; then split -b 15M -d "$pack" "$OUT/loso_runs.tgz.part"; else cp "$pack" "$OUT/"; fi
 echo "[$(el)] packed $(du -h "$pack" | cut -f1): $(cd "$OUT" && echo loso_runs.tgz*)"
