@@ -73,10 +73,11 @@ def test_a_fold_that_fails_late_is_not_run_again(tmp_path, synthetic_dataset):
 
 
 def test_stacked_trains_every_fold_in_one_process_and_packs_no_state(tmp_path, synthetic_dataset):
-    proc = run_script(tmp_path, synthetic_dataset, STACKED="1", WORKERS="1")
+    proc = run_script(tmp_path, synthetic_dataset, STACKED="1", WORKERS="1", BENCH="cpu")
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     log = (tmp_path / "out" / "loso.log").read_text()
     assert "stacked rc=0 stacked: epoch 0 done, step 2" in log and "evaluate rc=0" in log
+    assert "2 folds stacked (one vmapped unet_fast)" in log  # BENCH: the step benchmark's table first
     assert "fold alpha: val PCC" in log and "fold beta: val PCC" in log and "fold alpha rc=" not in log
     assert "all-cv" in log and "scenes: alpha, beta" in log
     with tarfile.open(tmp_path / "out" / "loso_runs.tgz") as tar:

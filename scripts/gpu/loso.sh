@@ -16,7 +16,8 @@
 #   again with them on the CPU)
 #   STACKED= (1: every fold in one process, side by side: crossval.stacked, nriqa.training.stacked; one GPU
 #   step serves all folds, WORKERS=nproc-1 loader processes make the patches on the CPU; PARALLEL, DEVICE and
-#   RETRY_WITHIN do not apply, and FOLD_TIME cuts the run of all folds)
+#   RETRY_WITHIN do not apply, and FOLD_TIME cuts the run of all folds; BENCH=cuda first times a stacked step
+#   against the folds one after another there, benchmarks/stacked_step.py, into the log)
 #   RENDER= (1: where DATA holds no dataset, render one there first with scripts/gpu/render_train.sh and no runs:
 #   its settings SEED, STAGES, RES, TOP, BACKEND, JOBS, RENDER_END apply, RENDER_SCENES=[a,b] its scenes; the
 #   full SITE, mitsuba included; its logs and manifest go into the pack)
@@ -95,6 +96,9 @@ stacked() { # every fold in this one process, side by side (crossval.stacked); W
   grep -h "^fold .*steps" "$W/logs/stacked.txt"
 }
 if [ -n "${STACKED:-}" ]; then
+  if [ -n "${BENCH:-}" ]; then # what a stacked step costs here, before the run
+    "$PY" benchmarks/stacked_step.py --folds "$(echo $SCENES | wc -w)" --device "$BENCH" --repeats 20 2>&1 | tail -6
+  fi
   stacked
 else
   pids=()  # a bare `wait` would also wait for the tee above
