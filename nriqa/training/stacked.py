@@ -39,7 +39,7 @@ from torch.utils.data import DataLoader, Dataset
 from nriqa.data.folds import FoldError
 from nriqa.data.images import PairCache
 from nriqa.data.patches import EpochSampler, TrainPatches
-from nriqa.io.atomic import PARTIAL_MARK
+from nriqa.io.atomic import atomic_path
 from nriqa.models import create_model
 from nriqa.training.last_checkpoint import LAST_NAME
 
@@ -187,10 +187,9 @@ def _fold_datamodules(cfg: DictConfig, scenes: list[str]) -> list:
 
 
 def _save_atomic(obj, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}{PARTIAL_MARK}")
-    torch.save(obj, tmp)
-    tmp.replace(path)
+    # Through a file object, as nriqa.inference.pretrained does: torch.save names its records after the path.
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        torch.save(obj, fh)
 
 
 def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> dict[str, dict]:
@@ -257,7 +256,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
             for f in (~finite).nonzero().flatten().tolist():
                 if f not in stopped:
                     print(f"fold {scenes[f]}: non-finite training loss at step {step}; its weights stay as they were")
-                    stopped[f] = {"step": step, "state": _fold_slices(stack, f)}
+                    stopped[f] = {"step": step, "state": stack.fold_state(f)}
             active = torch.tensor([f not in stopped for f in range(len(scenes))]) & finite
             optimizer.zero_grad(set_to_none=True)
             if bool(active.any()):
@@ -313,11 +312,6 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
         last = {"train/loss": history[-1]["loss"][f]} if history else {}
         results[scene] = fold_result(cfg, scene, fold_dir, dm, str(ckpt), run, last)
     return results
-
-
-def _fold_slices(stack: StackedNets, fold: int) -> dict[str, Tensor]:
-    """Fold ``fold``'s weights and buffers as they are now (before the step that found its loss non-finite)."""
-    return {k: v[fold].detach().clone() for k, v in {**stack.params, **stack.buffers}.items()}
 
 
 def _restore(stack: StackedNets, stopped: dict[int, dict]) -> None:
