@@ -66,8 +66,8 @@ def select(rows: list[dict], predictor: str, exclude: list[str] = ()) -> list[di
 def read_loop_rows(path: str | Path, kind: str) -> list[dict]:
     """The rows of loops of ``kind`` in a ``rows.csv`` of ``benchmarks/adaptive_interval.py``, as evaluation rows
     (``predictor`` the benchmark's scorer label, ``scene`` the family, ``mapped`` the loop's score)."""
+    need = {"scorer", "loop", "family", "score", "true"}
     try:
-        need = {"scorer", "loop", "family", "score", "true"}
         rows = read_csv(path, need, "a rows.csv of benchmarks/adaptive_interval.py")
     except ValueError as exc:
         raise CoverageError(str(exc)) from None
