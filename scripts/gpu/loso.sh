@@ -63,13 +63,15 @@ rm -rf "$W" && mkdir -p "$W/all/folds" "$W/logs"
 if [ -d "${W}_render" ]; then mv "${W}_render" "$W/render"; fi
 DEV=${DEVICE:-}
 echo "[$(el)] folds: $SCENES; ${PARALLEL:-all} at a time"
-train_fold() { # SCENE DEVICE: one fold, patches made on DEVICE (empty: on the CPU)
-  rm -rf "${W:?}/cv/$1"
+recipe() { # OVERRIDES...: nriqa-crossval with the recipe's settings, the OVERRIDES, then EXTRA
   # shellcheck disable=SC2086  # EXTRA is a list of overrides
   "$PY" -m nriqa.cli.crossval experiment="${EXPERIMENT:-unet_fast}" trainer="${TRAINER:-gpu}" "paths.data_dir=[$DATA]" \
     data.patch_size=64 data.batch_size=8 schedule.map.epochs="${EPOCHS:-60}" seed="${SEED:-12345}" \
-    ${2:+data.device=$2} "crossval.scenes=[$1]" crossval.out_dir="$W/cv/$1" trainer.enable_progress_bar=false \
-    +trainer.max_time="${FOLD_TIME:-00:00:06:00}" ${EXTRA:-} >"$W/logs/fold_$1.txt" 2>&1
+    trainer.enable_progress_bar=false +trainer.max_time="${FOLD_TIME:-00:00:06:00}" "$@" ${EXTRA:-}
+}
+train_fold() { # SCENE DEVICE: one fold, patches made on DEVICE (empty: on the CPU)
+  rm -rf "${W:?}/cv/$1"
+  recipe ${2:+data.device=$2} "crossval.scenes=[$1]" crossval.out_dir="$W/cv/$1" >"$W/logs/fold_$1.txt" 2>&1
 }
 fold() { # SCENE
   local t0 rc
@@ -86,12 +88,9 @@ fold() { # SCENE
   echo "[$(el)] fold $1 rc=$rc $(grep -h "fold $1:" "$W/logs/fold_$1.txt" | tail -1)"
 }
 stacked() { # every fold in this one process, side by side (crossval.stacked); WORKERS loader processes make patches
-  # shellcheck disable=SC2086  # EXTRA is a list of overrides
-  "$PY" -m nriqa.cli.crossval experiment="${EXPERIMENT:-unet_fast}" trainer="${TRAINER:-gpu}" "paths.data_dir=[$DATA]" \
-    data.patch_size=64 data.batch_size=8 schedule.map.epochs="${EPOCHS:-60}" seed="${SEED:-12345}" \
-    "crossval.scenes=[$(echo $SCENES | tr ' ' ,)]" crossval.out_dir="$W/cv/stacked" crossval.stacked=true \
-    data.num_workers="${WORKERS:-$(($(nproc) > 2 ? $(nproc) - 1 : 1))}" trainer.enable_progress_bar=false \
-    +trainer.max_time="${FOLD_TIME:-00:00:06:00}" ${EXTRA:-} >"$W/logs/stacked.txt" 2>&1
+  # shellcheck disable=SC2086  # SCENES is a list
+  recipe "crossval.scenes=[$(echo $SCENES | tr ' ' ,)]" crossval.out_dir="$W/cv/stacked" crossval.stacked=true \
+    data.num_workers="${WORKERS:-$(($(nproc) > 2 ? $(nproc) - 1 : 1))}" >"$W/logs/stacked.txt" 2>&1
   echo "[$(el)] stacked rc=$? $(grep -h '^stacked: epoch' "$W/logs/stacked.txt" | tail -1)"
   grep -h "^fold .*steps" "$W/logs/stacked.txt"
 }
