@@ -125,24 +125,39 @@ def test_stacked_resumes_where_it_was_cut(synthetic_dataset, tmp_path, monkeypat
         stacked.train_stacked(_cfg(synthetic_dataset, cut, "crossval.stacked=true"), ["alpha", "gamma"], cut)
 
 
-def test_stacked_fold_with_nonfinite_loss_stops_alone(synthetic_dataset, tmp_path, monkeypatch):
+def _beta_fails_from_step_2(monkeypatch):
     losses = StackedNets.losses
     calls = []
 
-    def beta_fails_at_step_2(self, x, y, loss_fn):
+    def beta_fails(self, x, y, loss_fn):
         out = losses(self, x, y, loss_fn)
         calls.append(1)
         if len(calls) >= 3:
             out = out * torch.tensor([1.0, float("nan")])
         return out
 
-    monkeypatch.setattr(StackedNets, "losses", beta_fails_at_step_2)
+    monkeypatch.setattr(StackedNets, "losses", beta_fails)
+
+
+def test_stacked_fold_with_nonfinite_loss_stops_alone(synthetic_dataset, tmp_path, monkeypatch):
+    _beta_fails_from_step_2(monkeypatch)
     results = stacked.train_stacked(
         _cfg(synthetic_dataset, tmp_path, "crossval.stacked=true"), ["alpha", "beta"], tmp_path
     )
-    assert "first_nonfinite_step" not in results["alpha"] and results["beta"]["first_nonfinite_step"] == 2
+    assert "first_nonfinite_step" not in results["alpha"]
+    assert results["beta"]["first_nonfinite_step"] == 2 and results["beta"]["nonfinite_steps"] == 1
     state = torch.load(tmp_path / STATE_NAME, weights_only=True)
     assert state["history"][-1]["loss"][1] == 0.0 and state["history"][-1]["loss"][0] > 0  # beta took no step after
+    assert all(torch.isfinite(v).all() for v in _weights(tmp_path, "beta").values() if v.is_floating_point())
+
+
+def test_stacked_fold_that_skips_nonfinite_steps_counts_them(synthetic_dataset, tmp_path, monkeypatch):
+    # model.stop_on_nonfinite=false: each bad step is skipped and the fold goes on; the result says when and how often
+    _beta_fails_from_step_2(monkeypatch)
+    cfg = _cfg(synthetic_dataset, tmp_path, "crossval.stacked=true", "+model.stop_on_nonfinite=false")
+    results = stacked.train_stacked(cfg, ["alpha", "beta"], tmp_path)
+    assert "first_nonfinite_step" not in results["alpha"] and results["alpha"]["steps"] == 6
+    assert results["beta"]["first_nonfinite_step"] == 2 and results["beta"]["nonfinite_steps"] == 6 - 2
     assert all(torch.isfinite(v).all() for v in _weights(tmp_path, "beta").values() if v.is_floating_point())
 
 

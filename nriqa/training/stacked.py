@@ -219,6 +219,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
 
     state_path = out_dir / STATE_NAME
     epoch, step, seconds, stopped, history = 0, 0, 0.0, {}, []
+    nonfinite: dict[int, list[int]] = {}  # fold -> [first step with a non-finite loss, how many such steps]
     if state_path.is_file():
         state = torch.load(state_path, map_location=device, weights_only=True)
         if state["scenes"] != scenes:
@@ -231,6 +232,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
             scheduler.load_state_dict(state["scheduler"])
         epoch, step, seconds, history = state["epoch"], state["step"], state["seconds"], state["history"]
         stopped = {int(k): v for k, v in state["stopped"].items()}
+        nonfinite = {int(k): v for k, v in state.get("nonfinite", {}).items()}
         print(f"stacked: resumed at epoch {epoch} (step {step}, {seconds:.0f} s) from {state_path}")
 
     data = cfg.data
@@ -255,6 +257,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
             finite = torch.isfinite(losses.detach()).cpu()
             for f in (~finite).nonzero().flatten().tolist():
                 if f not in stopped:
+                    nonfinite.setdefault(f, [step, 0])[1] += 1
                     print(f"fold {scenes[f]}: non-finite training loss at step {step}; its weights stay as they were")
                     stopped[f] = {"step": step, "state": stack.fold_state(f)}
             active = torch.tensor([f not in stopped for f in range(len(scenes))]) & finite
@@ -289,6 +292,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
                 "seconds": seconds,
                 "history": history,
                 "stopped": {str(k): v for k, v in stopped.items()},
+                "nonfinite": {str(k): v for k, v in nonfinite.items()},
             },
             state_path,
         )
@@ -307,8 +311,8 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
             ckpt,
         )
         run = {"epochs": epoch, "steps": step, "seconds": seconds, "stacked_folds": len(scenes)}
-        if f in stopped:
-            run["first_nonfinite_step"] = stopped[f]["step"]
+        if f in nonfinite:  # as the one-by-one module counts them, whether the fold stopped or skipped the steps
+            run["first_nonfinite_step"], run["nonfinite_steps"] = nonfinite[f]
         last = {"train/loss": history[-1]["loss"][f]} if history else {}
         results[scene] = fold_result(cfg, scene, fold_dir, dm, str(ckpt), run, last)
     return results
