@@ -44,6 +44,6 @@ class LastCheckpoint(L.Callback):
             return
         # one name for every rank (save_checkpoint is collective); the partial mark lets a resume sweep it
         tmp = self.dirpath / f".last{PARTIAL_MARK}.ckpt"
-        trainer.save_checkpoint(tmp)
+        trainer.save_checkpoint(tmp, weights_only=False)  # whole (a resume needs the optimiser); said, not logged
         if trainer.is_global_zero:
             os.replace(tmp, self.path)
