@@ -101,3 +101,33 @@ def test_render_makes_the_slice_first_and_packs_its_logs(tmp_path):
     with tarfile.open(tmp_path / "out" / "loso_runs.tgz") as tar:
         names = tar.getnames()
     assert "render/device.log" in names and "render/manifest.json" in names
+
+
+def test_editing_the_script_during_a_run_leaves_that_run_as_it_was(tmp_path):
+    # bash reads a script as it goes; one written over in place mid-run would run the new text from the old offset.
+    # The first call of PY (the package check, which passes) writes over the copy the run reads, as an editor saving
+    # it would; later calls fail, as a fold with no package would.
+    script = tmp_path / "loso.sh"
+    script.write_bytes(SCRIPT.read_bytes())
+    fake = tmp_path / "python"
+    fake.write_text(
+        "#!/usr/bin/env bash\n"
+        f'if [ ! -f "{tmp_path}/edited" ]; then touch "{tmp_path}/edited"\n'
+        f'  printf "%0{len(SCRIPT.read_bytes())}d\\necho EDITED; exit 99\\n" 0 | tr 0 "#" > "{script}"; exit 0; fi\n'
+        "exit 1\n"
+    )
+    fake.chmod(0o755)
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "manifest.json").write_text("{}")
+    settings = {"OUT": str(tmp_path / "out"), "WORK": str(tmp_path / "work"), "DATA": str(tmp_path / "data")}
+    proc = subprocess.run(
+        ["bash", str(script)],
+        cwd=ROOT,
+        env={**os.environ, **settings, "PY": str(fake), "SCENES": "alpha"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert (tmp_path / "edited").exists() and "EDITED" in script.read_text()
+    assert "EDITED" not in proc.stdout and proc.returncode == 0, proc.stdout[-2000:]
+    assert "fold alpha rc=1" in proc.stdout and "evaluate rc=1" in proc.stdout  # the run went on to its end

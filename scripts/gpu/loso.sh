@@ -29,6 +29,7 @@
 # The lent machine sends back at most 8 files of at most 16 MiB: a larger pack is cut into 15 MiB parts,
 # OUT/loso_runs.tgz.part00, part01, ... (`cat loso_runs.tgz.part* | tar -xz` unpacks them).
 set -u
+{ # the whole script is read before it runs: editing this file during a run leaves that run as it was
 T0=$(date +%s)
 el() { echo $(($(date +%s) - T0)); }
 OUT=${OUT:-/tmp/out}
@@ -135,3 +136,5 @@ tar -C "$W" --exclude='*/tensorboard/*' --exclude='*/stacked_state.pt' -czf "$pa
   $([ -d "$W/render" ] && echo render)
 if [ "$(stat -c %s "$pack")" -gt $((15 * 1048576)) ]; then split -b 15M -d "$pack" "$OUT/loso_runs.tgz.part"; else cp "$pack" "$OUT/"; fi
 echo "[$(el)] packed $(du -h "$pack" | cut -f1): $(cd "$OUT" && echo loso_runs.tgz*)"
+exit
+}

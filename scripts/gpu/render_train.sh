@@ -19,6 +19,7 @@
 # Measured on an H200 (stop 33, docs/cluster.md): 33 images/s at 64x64 with 14 processes; 64 training steps/s
 # for each of two unet_fast runs sharing the GPU.
 set -u
+{ # the whole script is read before it runs: editing this file during a run leaves that run as it was
 T0=$(date +%s)
 el() { echo $(($(date +%s) - T0)); }
 OUT=${OUT:-/tmp/out}
@@ -119,3 +120,5 @@ for i in "${!pids[@]}"; do
   cp "/tmp/runs/$name/checkpoints/last.ckpt" "$OUT/$name.ckpt" 2>/dev/null
 done
 ls -la "$OUT"
+exit
+}
