@@ -259,7 +259,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
                 if f not in stopped:
                     nonfinite.setdefault(f, [step, 0])[1] += 1
                     print(f"fold {scenes[f]}: non-finite training loss at step {step}; its weights stay as they were")
-                    stopped[f] = {"step": step, "state": stack.fold_state(f)}
+                    stopped[f] = {"state": stack.fold_state(f)}  # its first bad step: nonfinite[f]
             active = torch.tensor([f not in stopped for f in range(len(scenes))]) & finite
             optimizer.zero_grad(set_to_none=True)
             if bool(active.any()):
