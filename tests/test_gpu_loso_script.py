@@ -87,6 +87,35 @@ def test_stacked_trains_every_fold_in_one_process_and_packs_no_state(tmp_path, s
     assert not any(n.endswith("stacked_state.pt") for n in names)
 
 
+def test_a_stacked_step_that_fails_its_benchmark_leaves_the_folds_to_processes(tmp_path, synthetic_dataset):
+    proc = run_script(tmp_path, synthetic_dataset, STACKED="1", WORKERS="1", BENCH="no_such_device", PARALLEL="2")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    log = (tmp_path / "out" / "loso.log").read_text()
+    assert "the stacked step failed on no_such_device" in log and "stacked rc=" not in log
+    assert "fold alpha rc=0" in log and "fold beta rc=0" in log and "evaluate rc=0" in log
+    with tarfile.open(tmp_path / "out" / "loso_runs.tgz") as tar:
+        names = tar.getnames()
+    assert any(n.endswith("cv/alpha/folds/alpha/checkpoints/last.ckpt") for n in names)
+    assert "logs/bench.txt" in names
+
+
+def test_a_stacked_run_that_fails_early_leaves_the_folds_to_processes(tmp_path, synthetic_dataset):
+    # gradient clipping is refused by the stacked path and allowed for a run of its own
+    extra = "schedule.map.batches_per_epoch=2 schedule.map.val_patches=8 crossval.eval_patches=8"
+    proc = run_script(
+        tmp_path,
+        synthetic_dataset,
+        STACKED="1",
+        WORKERS="1",
+        PARALLEL="2",
+        EXTRA=f"{extra} +trainer.gradient_clip_val=1.0",
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    log = (tmp_path / "out" / "loso.log").read_text()
+    assert "stacked failed early" in log and "gradient" in log.split("stacked failed early")[1].splitlines()[0]
+    assert "fold alpha rc=0" in log and "fold beta rc=0" in log and "evaluate rc=0" in log
+
+
 def test_render_makes_the_slice_first_and_packs_its_logs(tmp_path):
     pytest.importorskip("mitsuba")
     settings = dict(

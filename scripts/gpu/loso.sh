@@ -17,7 +17,9 @@
 #   STACKED= (1: every fold in one process, side by side: crossval.stacked, nriqa.training.stacked; one GPU
 #   step serves all folds, WORKERS=nproc-1 loader processes make the patches on the CPU; PARALLEL, DEVICE and
 #   RETRY_WITHIN do not apply, and FOLD_TIME cuts the run of all folds; BENCH=cuda first times a stacked step
-#   against the folds one after another there, benchmarks/stacked_step.py, into the log)
+#   against the folds one after another there, benchmarks/stacked_step.py, into the log. Where that benchmark
+#   fails, or the stacked run fails within RETRY_WITHIN seconds, the folds run as processes instead, as without
+#   STACKED, so a lease still ends in a result)
 #   RENDER= (1: where DATA holds no dataset, render one there first with scripts/gpu/render_train.sh and no runs:
 #   its settings SEED, STAGES, RES, TOP, BACKEND, JOBS, RENDER_END apply, RENDER_SCENES=[a,b] its scenes; the
 #   full SITE, mitsuba included; its logs and manifest go into the pack)
@@ -32,6 +34,7 @@ set -u
 { # the whole script is read before it runs: editing this file during a run leaves that run as it was
 T0=$(date +%s)
 el() { echo $(($(date +%s) - T0)); }
+why() { grep -v -e '^\s*$' -e 'HYDRA_FULL_ERROR' "$1" | tail -1; } # FILE: the last line that says what went wrong
 OUT=${OUT:-/tmp/out}
 W=${WORK:-/tmp/loso}
 DATA=${DATA:-data/loso2629}
@@ -82,32 +85,54 @@ fold() { # SCENE
   # A fold that fails early with its patches on the accelerator is run again with them on the CPU (slower,
   # but a result); one that fails late is not, so the lease still ends in time.
   if [ $rc -ne 0 ] && [ -n "$DEV" ] && [ $(($(date +%s) - t0)) -lt "${RETRY_WITHIN:-180}" ]; then
-    echo "[$(el)] fold $1 failed with data.device=$DEV: $(grep -v '^\s*$' "$W/logs/fold_$1.txt" | tail -1); again with patches on the CPU"
+    echo "[$(el)] fold $1 failed with data.device=$DEV: $(why "$W/logs/fold_$1.txt"); again with patches on the CPU"
     train_fold "$1" ""
     rc=$?
   fi
   echo "[$(el)] fold $1 rc=$rc $(grep -h "fold $1:" "$W/logs/fold_$1.txt" | tail -1)"
 }
 stacked() { # every fold in this one process, side by side (crossval.stacked); WORKERS loader processes make patches
+  local rc
   # shellcheck disable=SC2086  # SCENES is a list
   recipe "crossval.scenes=[$(echo $SCENES | tr ' ' ,)]" crossval.out_dir="$W/cv/stacked" crossval.stacked=true \
     data.num_workers="${WORKERS:-$(($(nproc) > 2 ? $(nproc) - 1 : 1))}" >"$W/logs/stacked.txt" 2>&1
-  echo "[$(el)] stacked rc=$? $(grep -h '^stacked: epoch' "$W/logs/stacked.txt" | tail -1)"
+  rc=$?
+  echo "[$(el)] stacked rc=$rc $(grep -h '^stacked: epoch' "$W/logs/stacked.txt" | tail -1)"
   grep -h "^fold .*steps" "$W/logs/stacked.txt"
+  return $rc
 }
-if [ -n "${STACKED:-}" ]; then
-  if [ -n "${BENCH:-}" ]; then # what a stacked step costs here, before the run
-    "$PY" benchmarks/stacked_step.py --folds "$(echo $SCENES | wc -w)" --device "$BENCH" --repeats 20 2>&1 | tail -6
-  fi
-  stacked
-else
-  pids=()  # a bare `wait` would also wait for the tee above
+processes() { # one process per fold, PARALLEL at a time
+  local pids=()  # a bare `wait` would also wait for the tee above
   for s in $SCENES; do
     fold "$s" &
     pids+=($!)
     if [ -n "${PARALLEL:-}" ] && [ ${#pids[@]} -ge "$PARALLEL" ]; then wait "${pids[@]}"; pids=(); fi
   done
   [ ${#pids[@]} -eq 0 ] || wait "${pids[@]}"
+}
+if [ -n "${STACKED:-}" ]; then
+  if [ -n "${BENCH:-}" ]; then # what a stacked step costs here, before the run
+    "$PY" benchmarks/stacked_step.py --folds "$(echo $SCENES | wc -w)" --device "$BENCH" --repeats 20 \
+      >"$W/logs/bench.txt" 2>&1
+    rc=$?
+    tail -6 "$W/logs/bench.txt"
+    if [ $rc -ne 0 ]; then
+      echo "[$(el)] the stacked step failed on $BENCH (rc=$rc): the folds as processes instead"
+      STACKED=
+    fi
+  fi
+fi
+if [ -n "${STACKED:-}" ]; then
+  t0=$(date +%s)
+  stacked
+  rc=$?
+  if [ $rc -ne 0 ] && [ $(($(date +%s) - t0)) -lt "${RETRY_WITHIN:-180}" ]; then
+    echo "[$(el)] stacked failed early: $(why "$W/logs/stacked.txt"); the folds as processes instead"
+    STACKED=
+    processes
+  fi
+else
+  processes
 fi
 for s in $SCENES; do
   run=$W/cv/$s/folds/$s
