@@ -8,6 +8,8 @@ import json
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
+from torch import nn
+from torch.overrides import TorchFunctionMode
 
 from nriqa.configs import CONFIG_DIR
 from nriqa.data.folds import FoldError
@@ -16,7 +18,7 @@ from nriqa.models import create_model
 from nriqa.training import stacked
 from nriqa.training.checkpoint import load_net_from_checkpoint
 from nriqa.training.crossval import RESULT_NAME, crossval
-from nriqa.training.stacked import STATE_NAME, StackedNets, parse_max_time
+from nriqa.training.stacked import STATE_NAME, BatchNormByOps, StackedNets, parse_max_time
 
 TINY = [
     "schedule=smoke",
@@ -60,6 +62,58 @@ def test_stacked_steps_equal_separate_steps(name):
         got = stack.fold_state(f)
         for k, v in net.state_dict().items():
             assert torch.allclose(got[k].double(), v.double(), rtol=0, atol=1e-9), k
+
+
+@pytest.mark.parametrize("momentum", [0.1, None])
+def test_batch_norm_by_ops_is_batch_norm(momentum):
+    torch.manual_seed(1)
+    ref = nn.BatchNorm2d(5, momentum=momentum, eps=1e-3).double()
+    with torch.no_grad():
+        ref.weight.uniform_(0.5, 2)
+        ref.bias.uniform_(-1, 1)
+    ops = copy.deepcopy(ref)
+    ops.__class__ = BatchNormByOps
+    for _ in range(3):
+        x = (torch.randn(4, 5, 6, 7, dtype=torch.float64) * 3 + 2).requires_grad_(True)
+        xo = x.detach().clone().requires_grad_(True)
+        y, yo = ref(x), ops(xo)
+        w = torch.randn_like(y)
+        (y * w).sum().backward()
+        (yo * w).sum().backward()
+        assert torch.allclose(yo, y, atol=1e-12) and torch.allclose(xo.grad, x.grad, atol=1e-12)
+    for (k, v), (ko, vo) in zip(ref.state_dict().items(), ops.state_dict().items()):
+        assert k == ko and torch.allclose(vo.double(), v.double(), atol=1e-12), k
+    assert torch.allclose(ops.weight.grad, ref.weight.grad, atol=1e-12)
+    ops.eval()  # outside training it is batch norm itself
+    x = torch.randn(2, 5, 3, 3, dtype=torch.float64)
+    assert torch.allclose(ops(x), ref.eval()(x), atol=1e-12)
+    with pytest.raises(ValueError, match="more than 1 value per channel"):
+        ops.train()(torch.randn(1, 5, 1, 1, dtype=torch.float64))
+
+
+class _BatchNormCalls(TorchFunctionMode):
+    def __init__(self):
+        super().__init__()
+        self.calls = 0
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        if func in (torch.batch_norm, torch.nn.functional.batch_norm, torch.native_batch_norm):
+            self.calls += 1
+        return func(*args, **(kwargs or {}))
+
+
+@pytest.mark.parametrize("name", ["fcnn_fast", "unet_fast"])
+def test_stacked_step_asks_no_batch_norm_kernel(name):
+    # torch.batch_norm asks a batched tensor for its memory layout on CUDA, which vmap cannot answer (stop 48's
+    # H100): the stacked step must not call it. The separate network does, so the probe is seen to work.
+    net = create_model(name, width=8)
+    x, y = torch.rand(2, 2, 3, 32, 32), torch.rand(2, 2, 1, 32, 32)
+    with _BatchNormCalls() as seen:
+        net(x[0])
+    assert seen.calls > 0
+    with _BatchNormCalls() as seen:
+        StackedNets(net, 2).losses(x, y, create_loss("joint", signed=True)).sum().backward()
+    assert seen.calls == 0
 
 
 def _cfg(data, out, *extra):

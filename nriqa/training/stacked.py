@@ -46,6 +46,35 @@ from nriqa.training.last_checkpoint import LAST_NAME
 STATE_NAME = "stacked_state.pt"
 
 
+class BatchNormByOps(nn.BatchNorm2d):
+    """``nn.BatchNorm2d`` in training mode written as plain tensor operations, which ``vmap`` runs on any device.
+
+    ``torch.batch_norm`` chooses its CUDA kernel by asking the input for its memory layout, a question a batched
+    tensor cannot answer inside ``vmap`` ("NYI: querying is_contiguous inside of vmap for memory_format other
+    than torch.contiguous_format", seen on an H100 in stop 48; on the CPU it never asks). The same arithmetic:
+    normalised with the batch's biased variance, running statistics updated with the unbiased one.
+    """
+
+    def forward(self, x: Tensor) -> Tensor:
+        if not self.training:
+            return super().forward(x)
+        n = x.numel() // x.shape[1]
+        if n < 2:
+            raise ValueError(f"Expected more than 1 value per channel when training, got input size {tuple(x.shape)}")
+        mean = x.mean((0, 2, 3))
+        var = x.var((0, 2, 3), correction=0)
+        if self.track_running_stats:
+            with torch.no_grad():
+                self.num_batches_tracked.add_(1)
+                m = self.momentum if self.momentum is not None else 1.0 / self.num_batches_tracked
+                self.running_mean.mul_(1 - m).add_(m * mean)
+                self.running_var.mul_(1 - m).add_(m * var * (n / (n - 1)))
+        y = (x - mean[:, None, None]) * torch.rsqrt(var + self.eps)[:, None, None]
+        if self.affine:
+            y = y * self.weight[:, None, None] + self.bias[:, None, None]
+        return y
+
+
 class StackedNets:
     """``folds`` copies of ``net`` (its weights and buffers at the time of the call) trained as one.
 
@@ -64,6 +93,8 @@ class StackedNets:
         for m in self.skeleton.modules():
             if hasattr(m, "memory_format"):
                 m.memory_format = torch.contiguous_format  # vmap cannot lay a batched tensor out otherwise
+            if type(m) is nn.BatchNorm2d:
+                m.__class__ = BatchNormByOps  # torch.batch_norm cannot pick its CUDA kernel inside vmap
 
     def to(self, device: torch.device) -> StackedNets:
         with torch.no_grad():
