@@ -37,6 +37,9 @@ def test_every_fold_trains_and_each_scene_is_scored_by_its_own_fold(tmp_path, sy
     log = (tmp_path / "out" / "loso.log").read_text()
     assert "fold alpha rc=0" in log and "fold beta rc=0" in log and "evaluate rc=0" in log
     assert "all-cv" in log and "scenes: alpha, beta" in log  # the evaluation's table, in the log
+    # the machine's cores, not nproc's answer to the OMP_NUM_THREADS=1 the script sets for its folds (which gave
+    # a stacked run one loader process)
+    assert f" {len(os.sched_getaffinity(0))} cores" in log.splitlines()[0]
     with tarfile.open(tmp_path / "out" / "loso_runs.tgz") as tar:
         names = tar.getnames()
         table = tar.extractfile("eval/comparison.md").read().decode()

@@ -34,6 +34,7 @@ set -u
 { # the whole script is read before it runs: editing this file during a run leaves that run as it was
 T0=$(date +%s)
 el() { echo $(($(date +%s) - T0)); }
+cores() { env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc; } # nproc alone answers OMP_NUM_THREADS, set to 1 below
 why() { grep -v -e '^\s*$' -e 'HYDRA_FULL_ERROR' "$1" | tail -1; } # FILE: the last line that says what went wrong
 OUT=${OUT:-/tmp/out}
 W=${WORK:-/tmp/loso}
@@ -59,7 +60,7 @@ if [ -n "${RENDER:-}" ] && [ ! -f "$DATA/manifest.json" ]; then
   echo "[$(el)] render rc=$?: $(grep -h 'stage variants\|gate rc\|dataset:' "${W}_render/device.log" 2>/dev/null | tr '\n' ';')"
 fi
 [ -f "$DATA/manifest.json" ] || { echo "no dataset at $DATA (manifest.json missing): carry one or render it first"; exit 2; }
-echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(nproc --all) cores"
+echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(cores) cores"
 "$PY" -c "import torch, lightning, hydra, OpenEXR, kornia; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" ||
   { echo "the packages are missing: give SITE or WHEELS"; exit 2; }
 SCENES=${SCENES:-$("$PY" -c "import json, sys; print(*sorted({r['scene'] for r in json.load(open(sys.argv[1]))['records']}))" "$DATA/manifest.json")}
@@ -95,7 +96,7 @@ stacked() { # every fold in this one process, side by side (crossval.stacked); W
   local rc
   # shellcheck disable=SC2086  # SCENES is a list
   recipe "crossval.scenes=[$(echo $SCENES | tr ' ' ,)]" crossval.out_dir="$W/cv/stacked" crossval.stacked=true \
-    data.num_workers="${WORKERS:-$(($(nproc) > 2 ? $(nproc) - 1 : 1))}" >"$W/logs/stacked.txt" 2>&1
+    data.num_workers="${WORKERS:-$(($(cores) > 2 ? $(cores) - 1 : 1))}" >"$W/logs/stacked.txt" 2>&1
   rc=$?
   echo "[$(el)] stacked rc=$rc $(grep -h '^stacked: epoch' "$W/logs/stacked.txt" | tail -1)"
   grep -h "^fold .*steps" "$W/logs/stacked.txt"

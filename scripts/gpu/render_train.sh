@@ -35,7 +35,7 @@ if [ -n "$SITE" ]; then
   tar -xJf "$SITE" -C /tmp && export PYTHONPATH=/tmp/site312:$PWD || { echo "cannot unpack $SITE"; exit 2; }
 fi
 PY=${PY:-python3}
-echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(nproc) cores"
+echo "[$(el)] $(nvidia-smi --query-gpu=name,memory.total --format=csv,noheader 2>/dev/null) $(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc) cores"
 "$PY" -c "import torch, lightning, mitsuba, hydra, OpenEXR, kornia; print('torch', torch.__version__, torch.cuda.is_available())" || exit 2
 BACKEND=${BACKEND:-cuda_ad_rgb}
 "$PY" -c "import sys; from nriqa.render.backend import probe_variant as p; ok, why = p('$BACKEND', 90); print('probe $BACKEND:', why); sys.exit(not ok)" ||
@@ -48,7 +48,7 @@ render() { # OUTDIR VARIANTS BACKEND JOBS LADDER_TOP SECONDS
 
 if [ -n "${CHECK_BACKENDS:-}" ]; then
   for b in cuda_ad_rgb scalar_rgb; do
-    j=${JOBS:-14}; [ $b = scalar_rgb ] && j=$(nproc)
+    j=${JOBS:-14}; [ $b = scalar_rgb ] && j=$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)
     s=$(date +%s)
     render /tmp/check_$b 1 $b "$j" 64 240 >"$OUT/check_$b.log" 2>&1
     echo "[$(el)] check $b rc=$? $(($(date +%s) - s)) s"
