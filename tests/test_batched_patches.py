@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from nriqa.core.display import apply_display
+from nriqa.data.albedo import texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.jitter import apply_jitter, sample_jitter, shift_hsv
 from nriqa.data.patches import TONEMAP, cut_all, item_generator
@@ -31,6 +32,9 @@ def one_by_one(ds, k):
     pair = ds.pick(g)
     members = cut_all(pair, g, ds.patch_size, ds.twins)
     display = ds.display.sample(g) if ds.display is not None else TONEMAP
+    albedo = ds.draw(k).albedo  # drawn last, applied first (to the linear radiance)
+    if albedo is not None:
+        members = [m * texture(albedo, ds.patch_size) for m in members]
     if pair.linear:
         members = [apply_display(m, display, pair.key) for m in members]
     if ds.hsv or ds.geometric:
@@ -50,6 +54,8 @@ def one_by_one(ds, k):
         {"jitter": {"hsv": True, "geometric": False}},
         {"jitter": {"hsv": False, "geometric": False}},
         {"target": "patch_mae"},
+        {"albedo_p": 0.5},
+        {"display": MIX, "twins": True, "albedo_p": 0.5},
     ],
 )
 def test_a_batch_equals_its_items_made_one_by_one(synthetic_dataset, kw):

@@ -10,6 +10,7 @@ import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
+from nriqa.data.albedo import check_albedo_p
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
@@ -58,6 +59,9 @@ class NRIQADataModule(L.LightningDataModule):
             the noisy image and its reference alike before the target. Validation keeps the tone map.
         twins: feed the model the noisy image and its independent twin (6 channels), for the
             two-buffer scorer; the target stays the noisy image's quality.
+        albedo_p: the share of training patches multiplied by a random albedo texture, noisy image,
+            twin and reference alike, before the display and the target (:mod:`nriqa.data.albedo`);
+            0 (the default) draws none and leaves every other draw as it was.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -82,6 +86,7 @@ class NRIQADataModule(L.LightningDataModule):
         jitter: Mapping[str, bool] | None = None,
         display: Mapping[str, float] | None = None,
         twins: bool = False,
+        albedo_p: float = 0.0,
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -101,6 +106,7 @@ class NRIQADataModule(L.LightningDataModule):
         scenes = None if scenes is None else [str(s) for s in scenes]
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)
+        self.albedo_p = check_albedo_p(albedo_p)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -143,6 +149,7 @@ class NRIQADataModule(L.LightningDataModule):
             geometric=self.geometric,
             display=self.display,
             twins=self.twins,
+            albedo_p=self.albedo_p,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

@@ -16,6 +16,7 @@ from torch import Tensor
 from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
+from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
 from nriqa.data.images import ImagePair
 from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
 from nriqa.data.targets import check_target, compute_target
@@ -75,8 +76,10 @@ class TrainPatches(Dataset):
     """Random jittered training patches; item ``k`` is ``(input, target)`` drawn from ``(seed, k)``.
 
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
-    ``display``) a display transform, then the jitter, each applied to noisy image, twin and reference
-    alike, and the target is computed from the displayed, jittered pair. ``input`` is the noisy patch
+    ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, each
+    applied to noisy image, twin and reference alike, and the target is computed from the textured,
+    displayed, jittered pair. The texture multiplies the linear radiance, before the display (a
+    tone-mapped pair: its displayed values). ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``. Any ``k >= 0`` is valid;
     ``len`` is the number of items per epoch.
     """
@@ -92,6 +95,7 @@ class TrainPatches(Dataset):
         geometric: bool = True,
         display: DisplayMix | None = None,
         twins: bool = False,
+        albedo_p: float = 0.0,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
@@ -106,6 +110,7 @@ class TrainPatches(Dataset):
         self.geometric = geometric
         self.display = display
         self.twins = twins
+        self.albedo_p = check_albedo_p(albedo_p)
         self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
@@ -137,7 +142,7 @@ class TrainPatches(Dataset):
         return self.pairs[min(int(torch.searchsorted(self.cdf, u, right=True)), len(self.pairs) - 1)]
 
     def draw(self, index: int) -> Draw:
-        """The random choices of item ``index``: image, position, display and jitter, from ``(seed, index)``."""
+        """The random choices of item ``index``: image, position, display, jitter and albedo, from ``(seed, index)``."""
         g = item_generator(self.seed, index)
         pair = self.pick(g)
         h, w = pair.noisy.shape[-2:]
@@ -145,7 +150,7 @@ class TrainPatches(Dataset):
         x = int(torch.randint(0, w - self.patch_size + 1, (1,), generator=g))
         display = self.display.sample(g) if self.display is not None else TONEMAP
         jitter = sample_jitter(g, hsv=self.hsv, geometric=self.geometric) if self.hsv or self.geometric else None
-        return Draw(pair, y, x, display, jitter)
+        return Draw(pair, y, x, display, jitter, sample_albedo(g, self.albedo_p))
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
         return self.__getitems__([index])[0]
@@ -163,6 +168,7 @@ class TrainPatches(Dataset):
             torch.stack([src[j][:, d.y : d.y + size, d.x : d.x + size] for src, d in zip(sources, draws)])
             for j in range(len(sources[0]))
         ]
+        members = albedo_batch(draws, members)
         members = display_batch(draws, members)
         members = jitter_batch(draws, members)
         noisy, ref = members[0], members[1]
@@ -180,6 +186,20 @@ class Draw:
     x: int
     display: Display
     jitter: JitterParams | None
+    albedo: int | None = None  # the seed of the patch's albedo texture (nriqa.data.albedo), or none
+
+
+def albedo_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
+    """Each item of the ``(B, C, P, P)`` member stacks multiplied by its draw's albedo texture, the same for every member."""
+    rows = [i for i, d in enumerate(draws) if d.albedo is not None]
+    if not rows:
+        return members
+    size = members[0].shape[-1]
+    textures = torch.stack([texture(draws[i].albedo, size) for i in rows]).to(members[0])
+    out = [m.clone() for m in members]
+    for o in out:
+        o[rows] = o[rows] * textures
+    return out
 
 
 def display_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
