@@ -4,21 +4,12 @@ from __future__ import annotations
 
 import pytest
 import torch
+from test_batched_patches import MIX, make_dm
 
 from nriqa.data.albedo import LOW_RANGE, check_albedo_p, sample_albedo, texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import TONEMAP, item_generator
 from nriqa.data.targets import compute_target
-
-MIX = {"tonemap": 1.0, "srgb": 1.0, "gamma22": 1.0, "stops": 2.0, "quantise_p": 0.5}
-
-
-def make_dm(root, **kw) -> NRIQADataModule:
-    args = dict(val_scene="beta", patch_size=32, target="ssim_map", batch_size=8, batches_per_epoch=4, val_patches=8)
-    args.update(kw)
-    dm = NRIQADataModule(root, **args)
-    dm.setup("fit")
-    return dm
 
 
 def test_a_texture_is_a_function_of_its_seed_and_an_albedo():
