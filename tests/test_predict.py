@@ -288,6 +288,28 @@ def test_cli_twin_scores_with_a_two_buffer_model(tmp_path, twin_weights, weights
         assert message in line
 
 
+def test_cli_albedo_scores_with_a_model_that_takes_the_pass(tmp_path, weights):
+    torch.manual_seed(0)
+    spec = {"name": "unet_fast_albedo", "width": 8, "depth": 1}
+    save_pretrained(create_model(**spec), "unet_fast_albedo", {"note": "untrained, for tests"}, dir=tmp_path, spec=spec)
+    write_exr(tmp_path / "a.exr", rgb(40, 48, seed=1))
+    write_exr(tmp_path / "alb.exr", np.clip(rgb(40, 48, seed=2), 0, 1))
+    model = ["--model", "unet_fast_albedo", "--weights-dir", str(tmp_path)]
+    proc = _predict(tmp_path, "a.exr", "--albedo", "alb.exr", *model, "--json")
+    assert proc.returncode == 0, proc.stderr
+    (row,) = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert row["albedo"] == "alb.exr" and np.isfinite(row["score"])
+    for args, message in (
+        (["a.exr", *model], "pass --albedo ALBEDO"),
+        (["a.exr", "--albedo", "alb.exr", "alb.exr", *model], "give one per image"),
+        (["a.exr", "--albedo", "alb.exr", "--weights-dir", str(weights), "--model", "fcnn_fast"], "takes no albedo"),
+    ):
+        proc = _predict(tmp_path, *args)
+        assert proc.returncode == 2 and proc.stdout == ""
+        (line,) = proc.stderr.strip().splitlines()
+        assert message in line
+
+
 def test_cli_twin_of_another_size_is_one_line(tmp_path, twin_weights):
     write_exr(tmp_path / "a.exr", rgb(40, 48))
     write_exr(tmp_path / "b.exr", rgb(40, 40))

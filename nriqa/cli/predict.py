@@ -94,6 +94,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="for a two-buffer model (dual_fast): an independent render of each IMAGE at the same spp, in order",
     )
+    ap.add_argument(
+        "--albedo",
+        nargs="+",
+        metavar="ALBEDO",
+        default=None,
+        help="for a model with the albedo pass (unet_fast_albedo): each IMAGE's albedo pass (linear EXR, as "
+        "renderers write it for their denoisers), in order",
+    )
     ap.add_argument("--weights-dir", type=Path, default=None, help="folder of shipped weights (default: the package's)")
     ap.add_argument("--out", type=Path, default=Path("predictions"), help="output folder (default predictions/)")
     ap.add_argument("--json", action="store_true", help="print one JSON object per image instead of 'path score'")
@@ -138,7 +146,14 @@ def _one_line(prog: str, msg: str) -> str:
     return f"{prog}: error: {' '.join(msg.split())}"
 
 
-def score_file(scorer, name: str, args: argparse.Namespace, used: set[str], twin_name: str | None = None) -> str:
+def score_file(
+    scorer,
+    name: str,
+    args: argparse.Namespace,
+    used: set[str],
+    twin_name: str | None = None,
+    albedo_name: str | None = None,
+) -> str:
     """Score one file, write its map (and figure) into ``args.out``; return its line for stdout.
 
     Raises whatever reading, scoring or writing raises (:class:`nriqa.io.exr.ImageReadError`,
@@ -151,9 +166,10 @@ def score_file(scorer, name: str, args: argparse.Namespace, used: set[str], twin
     start = time.perf_counter()
     image, file_hdr = read_image(name)
     twin = read_image(twin_name)[0] if twin_name is not None else None
+    albedo = read_image(albedo_name)[0] if albedo_name is not None else None
     hdr = file_hdr if args.hdr is None else args.hdr
     t0 = time.perf_counter()
-    result = scorer(image, hdr=hdr, twin=twin)
+    result = scorer(image, hdr=hdr, twin=twin, albedo=albedo)
     seconds = time.perf_counter() - t0
     stem = _unique_stem(Path(name).stem, used)
     map_path = args.out / f"{stem}_map.exr"
@@ -173,6 +189,7 @@ def score_file(scorer, name: str, args: argparse.Namespace, used: set[str], twin
     row = {
         "path": str(name),
         "twin": twin_name,
+        "albedo": albedo_name,
         "score": round(result.score, 6),
         "low": None if result.low is None else round(result.low, 6),
         "high": None if result.high is None else round(result.high, 6),
@@ -202,7 +219,7 @@ def _failure(name: str, exc: Exception) -> str:
 
 
 def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
-    """Why ``--twin`` does not fit the model or the images, or ``None``."""
+    """Why ``--twin`` or ``--albedo`` does not fit the model or the images, or ``None``."""
     model = type(scorer.net).__name__
     if scorer.needs_twin and args.twin is None:
         return f"{model} scores an image with its twin: pass --twin TWIN (an independent render at the same spp)"
@@ -210,6 +227,12 @@ def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
         return f"{model} scores one image; --twin needs a two-buffer model (--model dual_fast)"
     if args.twin is not None and len(args.twin) != len(args.images):
         return f"{len(args.images)} images but {len(args.twin)} twins: give one twin per image, in order"
+    if scorer.needs_albedo and args.albedo is None:
+        return f"{model} scores an image with its scene's albedo pass: pass --albedo ALBEDO (one per image)"
+    if not scorer.needs_albedo and args.albedo is not None:
+        return f"{model} takes no albedo pass; leave --albedo out, or choose a model trained with one"
+    if args.albedo is not None and len(args.albedo) != len(args.images):
+        return f"{len(args.images)} images but {len(args.albedo)} albedo passes: give one per image, in order"
     return None
 
 
@@ -237,14 +260,15 @@ def main(argv: list[str] | None = None) -> int:
         print(_one_line(ap.prog, problem), file=sys.stderr, flush=True)
         return 2
     twins = args.twin or [None] * len(args.images)
+    albedos = args.albedo or [None] * len(args.images)
 
     show = args.progress == "on" or (args.progress == "auto" and sys.stderr.isatty() and len(args.images) > 1)
     used: set[str] = set()
     failures = 0
     with tqdm(total=len(args.images), disable=not show, file=sys.stderr, unit="image", dynamic_ncols=True) as bar:
-        for name, twin_name in zip(args.images, twins):
+        for name, twin_name, albedo_name in zip(args.images, twins, albedos):
             try:
-                line = score_file(scorer, name, args, used, twin_name)
+                line = score_file(scorer, name, args, used, twin_name, albedo_name)
             except Exception as exc:  # one bad file must not stop the others
                 failures += 1
                 _emit(_one_line(ap.prog, _failure(name, exc)), sys.stderr)

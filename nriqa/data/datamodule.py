@@ -62,6 +62,9 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_p: the share of training patches multiplied by a random albedo texture, noisy image,
             twin and reference alike, before the display and the target (:mod:`nriqa.data.albedo`);
             0 (the default) draws none and leaves every other draw as it was.
+        albedo_pass: also feed the model each scene variant's albedo pass (``albedo.exr`` beside the
+            reference, ``python -m data_gen.albedo_pass DATA``), stacked after the image (and twin):
+            cut, textured and jittered with the image, never displayed.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -87,6 +90,7 @@ class NRIQADataModule(L.LightningDataModule):
         display: Mapping[str, float] | None = None,
         twins: bool = False,
         albedo_p: float = 0.0,
+        albedo_pass: bool = False,
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -107,6 +111,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
+        self.albedo_pass = bool(albedo_pass)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -137,8 +142,10 @@ class NRIQADataModule(L.LightningDataModule):
         if self.train_set is not None:
             return
         train, val = split_by_scene(only_scenes(read_datasets(self.data_dir), self.scenes), self.val_scene)
-        self.train_pairs = self.pair_source(train, linear=self.display is not None, twins=self.twins)
-        self.val_pairs = self.pair_source(val, twins=self.twins)
+        self.train_pairs = self.pair_source(
+            train, linear=self.display is not None, twins=self.twins, albedo=self.albedo_pass
+        )
+        self.val_pairs = self.pair_source(val, twins=self.twins, albedo=self.albedo_pass)
         self.train_set = TrainPatches(
             self.train_pairs if self.device is None else pairs_to(self.train_pairs, self.device),
             self.patch_size,
@@ -150,17 +157,25 @@ class NRIQADataModule(L.LightningDataModule):
             display=self.display,
             twins=self.twins,
             albedo_p=self.albedo_p,
+            albedo_pass=self.albedo_pass,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(
-                self.val_pairs, self.val_patches, self.patch_size, self.target, self.seed + _VAL_STREAM, self.twins
+                self.val_pairs,
+                self.val_patches,
+                self.patch_size,
+                self.target,
+                self.seed + _VAL_STREAM,
+                self.twins,
+                self.albedo_pass,
             )
 
     def train_eval_set(self, n: int | None = None) -> TensorDataset:
         """A fixed seeded set of ``n`` (default ``val_patches``) unjittered training patches, for reports."""
         self.setup()
         n = self.val_patches if n is None else n
-        return fixed_patches(self.train_pairs, n, self.patch_size, self.target, self.seed + _TRAIN_EVAL_STREAM, self.twins)
+        seed = self.seed + _TRAIN_EVAL_STREAM
+        return fixed_patches(self.train_pairs, n, self.patch_size, self.target, seed, self.twins, self.albedo_pass)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(

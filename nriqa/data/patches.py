@@ -39,13 +39,20 @@ def check_patch_size(pairs: list[ImagePair], patch_size: int) -> None:
             raise ValueError(f"{p.record.path} is {h}x{w}, smaller than patch_size={patch_size}; lower data.patch_size")
 
 
-def cut_all(pair: ImagePair, generator: torch.Generator, size: int, twins: bool = False) -> list[Tensor]:
-    """Cut one ``size`` x ``size`` patch at a uniformly random position, the same from noisy, ref (and twin)."""
+def cut_all(
+    pair: ImagePair, generator: torch.Generator, size: int, twins: bool = False, albedo_pass: bool = False
+) -> list[Tensor]:
+    """Cut one ``size`` x ``size`` patch at a uniformly random position, the same from noisy, ref (twin, albedo pass)."""
     h, w = pair.noisy.shape[-2:]
     y = int(torch.randint(0, h - size + 1, (1,), generator=generator))
     x = int(torch.randint(0, w - size + 1, (1,), generator=generator))
-    images = [pair.noisy, pair.ref] + ([pair.twin] if twins else [])
+    images = members_of(pair, twins, albedo_pass)
     return [img[:, y : y + size, x : x + size] for img in images]
+
+
+def members_of(pair: ImagePair, twins: bool, albedo_pass: bool) -> list[Tensor]:
+    """The images a patch is cut from alike: noisy, reference, then the twin and the albedo pass where asked."""
+    return [pair.noisy, pair.ref] + ([pair.twin] if twins else []) + ([pair.albedo] if albedo_pass else [])
 
 
 def cut(pair: ImagePair, generator: torch.Generator, size: int) -> tuple[Tensor, Tensor]:
@@ -67,9 +74,10 @@ def displayed(pair: ImagePair, patches: tuple[Tensor, ...], display: Display) ->
     return [apply_display(p, display, pair.key) for p in patches]
 
 
-def network_input(noisy: Tensor, twin: Tensor | None) -> Tensor:
-    """What a model sees: the image ``(3,P,P)``, or the image and its twin stacked ``(6,P,P)``."""
-    return noisy if twin is None else torch.cat([noisy, twin], dim=-3)
+def network_input(noisy: Tensor, twin: Tensor | None, albedo: Tensor | None = None) -> Tensor:
+    """What a model sees: the image ``(3,P,P)``, stacked on its channels with its twin and/or its albedo pass."""
+    extra = [t for t in (twin, albedo) if t is not None]
+    return torch.cat([noisy, *extra], dim=-3) if extra else noisy
 
 
 class TrainPatches(Dataset):
@@ -79,8 +87,10 @@ class TrainPatches(Dataset):
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, each
     applied to noisy image, twin and reference alike, and the target is computed from the textured,
     displayed, jittered pair. The texture multiplies the linear radiance, before the display (a
-    tone-mapped pair: its displayed values). ``input`` is the noisy patch
-    ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``. Any ``k >= 0`` is valid;
+    tone-mapped pair: its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
+    textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
+    ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
+    the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). Any ``k >= 0`` is valid;
     ``len`` is the number of items per epoch.
     """
 
@@ -96,11 +106,12 @@ class TrainPatches(Dataset):
         display: DisplayMix | None = None,
         twins: bool = False,
         albedo_p: float = 0.0,
+        albedo_pass: bool = False,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
         check_patch_size(pairs, patch_size)
-        check_pairs(pairs, display is not None, twins)
+        check_pairs(pairs, display is not None, twins, albedo_pass)
         self.pairs = pairs
         self.patch_size = patch_size
         self.target = check_target(target)
@@ -111,6 +122,7 @@ class TrainPatches(Dataset):
         self.display = display
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
+        self.albedo_pass = albedo_pass
         self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
@@ -163,17 +175,18 @@ class TrainPatches(Dataset):
         """
         draws = [self.draw(int(k)) for k in indices]
         size = self.patch_size
-        sources = [[d.pair.noisy, d.pair.ref] + ([d.pair.twin] if self.twins else []) for d in draws]
+        sources = [members_of(d.pair, self.twins, self.albedo_pass) for d in draws]
         members = [
             torch.stack([src[j][:, d.y : d.y + size, d.x : d.x + size] for src, d in zip(sources, draws)])
             for j in range(len(sources[0]))
         ]
         members = albedo_batch(draws, members)
-        members = display_batch(draws, members)
+        shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
+        members = display_batch(draws, members[:shown]) + members[shown:]
         members = jitter_batch(draws, members)
         noisy, ref = members[0], members[1]
         target = compute_target(self.target, noisy, ref)
-        inputs = network_input(noisy, members[2] if self.twins else None)
+        inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
 
 
@@ -278,34 +291,47 @@ class EpochSampler(Sampler[int]):
         return iter(range(start, start + self.n))
 
 
-def check_pairs(pairs: list[ImagePair], linear: bool, twins: bool) -> None:
-    """Raise a one-line ``ValueError`` if the pairs lack what display transforms or twin inputs need."""
+def check_pairs(pairs: list[ImagePair], linear: bool, twins: bool, albedo_pass: bool = False) -> None:
+    """Raise a one-line ``ValueError`` if the pairs lack what display transforms, twin or albedo inputs need."""
     if linear and not all(p.linear for p in pairs):
         raise ValueError("display transforms need linear image pairs; load them with linear=True")
     missing = [p.record.path for p in pairs if twins and p.twin is None]
     if missing:
         raise ValueError(f"{missing[0]} has no twin image; twin inputs need a dataset rendered with twins")
+    missing = [p.record.path for p in pairs if albedo_pass and p.albedo is None]
+    if missing:
+        raise ValueError(f"{missing[0]} has no albedo pass; load the pairs with albedo=True")
 
 
 def fixed_patches(
-    pairs: list[ImagePair], n: int, patch_size: int, target: str, seed: int, twins: bool = False
+    pairs: list[ImagePair],
+    n: int,
+    patch_size: int,
+    target: str,
+    seed: int,
+    twins: bool = False,
+    albedo_pass: bool = False,
 ) -> TensorDataset:
     """``n`` patches at seeded random positions, no jitter: a fixed evaluation set ``(input, target)``.
 
     Images are visited round-robin (so each held-out image contributes alike), positions drawn
     from one generator seeded with ``seed``. Linear pairs go through the package tone map, as
-    renders do at inference; ``input`` holds the twin too with ``twins``.
+    renders do at inference; ``input`` holds the twin too with ``twins``, the albedo pass (as it is)
+    with ``albedo_pass``.
     """
     if not pairs:
         raise ValueError("fixed_patches needs at least one image pair")
     check_patch_size(pairs, patch_size)
-    check_pairs(pairs, False, twins)
+    check_pairs(pairs, False, twins, albedo_pass)
     g = torch.Generator().manual_seed(int(seed))
     cuts = []
     for i in range(n):
         pair = pairs[i % len(pairs)]
-        cuts.append(displayed(pair, cut_all(pair, g, patch_size, twins), TONEMAP))
+        members = cut_all(pair, g, patch_size, twins, albedo_pass)
+        shown = len(members) - int(albedo_pass)
+        cuts.append(displayed(pair, tuple(members[:shown]), TONEMAP) + members[shown:])
     noisy = torch.stack([c[0] for c in cuts])
     ref = torch.stack([c[1] for c in cuts])
-    inputs = network_input(noisy, torch.stack([c[2] for c in cuts]) if twins else None)
+    twin = torch.stack([c[2] for c in cuts]) if twins else None
+    inputs = network_input(noisy, twin, torch.stack([c[-1] for c in cuts]) if albedo_pass else None)
     return TensorDataset(inputs, compute_target(target, noisy, ref))

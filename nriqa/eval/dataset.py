@@ -21,12 +21,12 @@ import torch
 
 from nriqa.core.display import Display, apply_display, key_exposure
 from nriqa.core.ssim import ssim_map
-from nriqa.data.images import load_linear_many
+from nriqa.data.images import load_albedo_many, load_linear_many
 from nriqa.errors import NriqaError
 from nriqa.eval.baselines import Item
 from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE, scan_external
 from nriqa.io.imread import HDR_SUFFIXES, load_ldr
-from nriqa.io.manifest import MANIFEST_NAME, Record, read_manifest
+from nriqa.io.manifest import MANIFEST_NAME, Record, albedo_path, read_manifest
 
 
 class EvaluationError(NriqaError):
@@ -84,7 +84,8 @@ def load_dataset(
     """Load the ``test`` images of the algorithms matching ``algorithms`` (comma-separated globs).
 
     Each image's reference is loaded once; with ``twins`` each image's twin too (the dual-buffer
-    baselines need it). Items keep the order of ``records``. ``display``: show linear renders
+    baselines need it); each scene variant's albedo pass where the dataset holds one (models with
+    the albedo pass need it). Items keep the order of ``records``. ``display``: show linear renders
     through it (module docstring); ``None`` loads as :func:`load_ldr` does.
 
     Raises:
@@ -98,6 +99,7 @@ def load_dataset(
         raise EvaluationError(f"{root}: no test images (algorithms {algorithms!r}); check the dataset or --algorithms")
     load = _Loader(root, display)
     refs: dict[str, torch.Tensor] = {}
+    albedos: dict[str, torch.Tensor | None] = {}
     items, true_maps = [], {}
     for rec in tests:
         if rec.reference not in refs:
@@ -111,5 +113,8 @@ def load_dataset(
         twin = load(by_id[rec.twin].path, rec.reference) if has_twin else None
         true_map = ssim_map(ldr[None], ref[None])[0, 0]
         true_maps[rec.id] = true_map
-        items.append(Item(rec, ldr, twin, float(true_map.mean())))
+        albedo = albedo_path(rec)
+        if albedo not in albedos:
+            albedos[albedo] = load_albedo_many([root / albedo])[0] if (root / albedo).is_file() else None
+        items.append(Item(rec, ldr, twin, float(true_map.mean()), albedos[albedo]))
     return Dataset(items, refs, true_maps)

@@ -46,9 +46,14 @@ def true_image_score(pair: ImagePair, target: str) -> float:
     return float(compute_target(target, pair.noisy[None], pair.ref[None]).mean())
 
 
-def predicted_image_score(scorer: Scorer, image: Tensor, twin: Tensor | None = None) -> float:
-    """Mean-pooled prediction of ``scorer`` for a ``(3, H, W)`` LDR image (a two-buffer model also its ``twin``)."""
-    return float(scorer(image, hdr=False, twin=twin if scorer.needs_twin else None).score)
+def predicted_image_score(
+    scorer: Scorer, image: Tensor, twin: Tensor | None = None, albedo: Tensor | None = None
+) -> float:
+    """Mean-pooled prediction of ``scorer`` for a ``(3, H, W)`` LDR image (with the ``twin`` and the
+    ``albedo`` pass where the model takes them)."""
+    twin = twin if scorer.needs_twin else None
+    albedo = albedo if scorer.needs_albedo else None
+    return float(scorer(image, hdr=False, twin=twin, albedo=albedo).score)
 
 
 def image_level(
@@ -72,7 +77,7 @@ def image_level(
             "spp": p.record.spp,
             "role": p.record.role,
             "true": true_image_score(p, target),
-            "predicted": predicted_image_score(scorer, p.noisy, p.twin),
+            "predicted": predicted_image_score(scorer, p.noisy, p.twin, p.albedo),
         }
         for p in pairs
     ]

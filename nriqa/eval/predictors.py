@@ -40,12 +40,14 @@ class ScorerPredictor(Predictor):
 
     def predict(self, item: Item) -> Prediction:
         scorer = self.scorer_for(item)
-        if not getattr(scorer, "needs_twin", False):
-            result = scorer(item.ldr, hdr=False)
-        elif item.twin is None:  # a two-buffer scorer cannot score an image without its twin
+        extra = {}
+        if getattr(scorer, "needs_twin", False):
+            extra["twin"] = item.twin
+        if getattr(scorer, "needs_albedo", False):
+            extra["albedo"] = item.albedo
+        if any(v is None for v in extra.values()):  # a scorer cannot score an image without the inputs it takes
             return Prediction(math.nan, None)
-        else:
-            result = scorer(item.ldr, hdr=False, twin=item.twin)
+        result = scorer(item.ldr, hdr=False, **extra)
         return Prediction(float(result.score), torch.as_tensor(result.map).float())
 
 

@@ -111,7 +111,9 @@ class Scorer:
       SSIM the map predicts is itself undefined below 6x6 pixels.
 
     Two-buffer models (``needs_twin``, e.g. ``dual_fast``) take the image and an independent
-    render of it at the same spp (``twin=``); both go through the same preprocessing.
+    render of it at the same spp (``twin=``); both go through the same preprocessing. Models with the
+    albedo pass (``needs_albedo``, e.g. ``unet_fast_albedo``) take the scene's albedo pass
+    (``albedo=``): reflectances, NaN -> 0 and clamped to [0, 1], never tone-mapped.
 
     Maps: a map model's output is clipped to [0, 1] (the range of its SSIM target). The patch model
     gets a map by sliding 32x32 windows with ``stride`` over the image (the last window in each
@@ -184,7 +186,8 @@ class Scorer:
         self.receptive_field = int(net.receptive_field)
         # the smallest image worth scoring: the local window (a context model's field is much larger)
         self.min_size = int(getattr(net, "min_size", self.receptive_field))
-        self.needs_twin = int(getattr(net, "in_channels", 3)) == 6
+        self.needs_albedo = bool(getattr(net, "albedo", False))
+        self.needs_twin = int(getattr(net, "in_channels", 3)) - 3 * self.needs_albedo == 6
         self.align = int(getattr(net, "align", 1))
         self.tile = -(-tile // self.align) * self.align if tile else 0
         self.window = max(window, self.min_size) if window else 0
@@ -248,7 +251,12 @@ class Scorer:
         return cls(load_net_from_checkpoint(path), **kwargs)
 
     def __call__(
-        self, image: np.ndarray | Tensor, *, hdr: bool | None = None, twin: np.ndarray | Tensor | None = None
+        self,
+        image: np.ndarray | Tensor,
+        *,
+        hdr: bool | None = None,
+        twin: np.ndarray | Tensor | None = None,
+        albedo: np.ndarray | Tensor | None = None,
     ) -> ScoreResult:
         """Score one image or a batch; see the class docstring for shapes and the HDR/LDR rule.
 
@@ -257,6 +265,8 @@ class Scorer:
             hdr: force linear HDR (tone-mapped) or LDR; ``None`` decides per image.
             twin: for a two-buffer model (``needs_twin``): an independent render of the same image at
                 the same spp, in the same layout; it goes through the same HDR/LDR decision as ``image``.
+            albedo: for a model with the albedo pass (``needs_albedo``): the scene's albedo pass in
+                the same layout, reflectances in [0, 1].
 
         Returns:
             :class:`ScoreResult` with the map ``(H, W)`` / ``(B, H, W)`` and the mean-pooled score.
@@ -273,10 +283,10 @@ class Scorer:
                 f"image of {h}x{w} pixels is smaller than the {self.min_size}x{self.min_size} "
                 f"{what} of {type(self.net).__name__}; give at least {self.min_size} pixels a side"
             )
-        twins = self._twin_batch(twin, batch.shape)
+        extra = self._extra_batch(twin, albedo, batch.shape)
         with torch.inference_mode():
             flags = self.detect_hdr(batch, hdr)
-            qmap = self._map(batch, flags, twins)
+            qmap = self._map(batch, flags, extra)
             if self.exact_flat:
                 self._flat_to_one(qmap, batch, flags)
             scores = qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
@@ -306,22 +316,31 @@ class Scorer:
             low[ldr], high[ldr] = (end[ldr] for end in self.ldr_interval(values))
         return low, high
 
-    def _twin_batch(self, twin: np.ndarray | Tensor | None, shape: torch.Size) -> Tensor | None:
-        """The twin as a batch like the image's, or ``None``; a refusal names what is wrong."""
+    def _extra_batch(
+        self, twin: np.ndarray | Tensor | None, albedo: np.ndarray | Tensor | None, shape: torch.Size
+    ) -> Tensor | None:
+        """The twin and/or the albedo pass the model takes, stacked on channels as a batch like the
+        image's, or ``None``; a refusal names what is wrong."""
         name = type(self.net).__name__
-        if twin is None:
-            if self.needs_twin:
-                raise ScorerInputError(f"{name} scores an image with its twin: pass twin= (predict.py --twin TWIN)")
-            return None
-        if not self.needs_twin:
-            raise ScorerInputError(f"{name} scores one image; a twin needs a two-buffer model (dual_fast)")
-        batch, _ = _as_batch(twin)
-        if batch.shape != shape:
-            raise ScorerInputError(
-                f"the twin is {tuple(batch.shape[-2:])} but the image is {tuple(shape[-2:])} (height, width); "
-                "give a render of the same size"
-            )
-        return batch
+        parts = []
+        for what, given, needed, how in (
+            ("twin", twin, self.needs_twin, "an independent render of it (twin=, predict.py --twin TWIN)"),
+            ("albedo pass", albedo, self.needs_albedo, "its scene's albedo pass (albedo=)"),
+        ):
+            if given is None:
+                if needed:
+                    raise ScorerInputError(f"{name} scores an image with {how}")
+                continue
+            if not needed:
+                raise ScorerInputError(f"{name} takes no {what}; leave it out, or choose a model that takes one")
+            batch, _ = _as_batch(given)
+            if batch.shape != shape:
+                raise ScorerInputError(
+                    f"the {what} is {tuple(batch.shape[-2:])} but the image is {tuple(shape[-2:])} "
+                    "(height, width); give one of the same size"
+                )
+            parts.append(batch)
+        return torch.cat(parts, dim=1) if parts else None
 
     @staticmethod
     def detect_hdr(batch: Tensor, hdr: bool | None = None) -> list[bool]:
@@ -351,23 +370,26 @@ class Scorer:
                 out[i] = torch.nan_to_num(img, nan=0.0, posinf=1.0, neginf=0.0).clamp(0.0, 1.0)
         return out
 
-    def _input(self, batch: Tensor, flags: list[bool], twins: Tensor | None) -> Tensor:
-        """Network input on ``self.device``: the prepared image, with the prepared twin stacked on its channels."""
-        x = self.prepare(batch, flags)
-        if twins is not None:
-            x = torch.cat([x, self.prepare(twins, flags)], dim=1)
-        return x.to(self.device)
+    def _input(self, batch: Tensor, flags: list[bool], extra: Tensor | None) -> Tensor:
+        """Network input on ``self.device``: the prepared image, with the prepared twin and the albedo
+        pass (:meth:`_extra_batch`'s channels) stacked on its channels."""
+        parts = [self.prepare(batch, flags)]
+        if extra is not None and self.needs_twin:
+            parts.append(self.prepare(extra[:, :3], flags))
+        if extra is not None and self.needs_albedo:
+            parts.append(torch.nan_to_num(extra[:, -3:].float(), nan=0.0, posinf=1.0, neginf=0.0).clamp(0.0, 1.0))
+        return torch.cat(parts, dim=1).to(self.device) if len(parts) > 1 else parts[0].to(self.device)
 
-    def _map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
-        """Raw ``(B, 3, H, W)`` batch (and twins) -> ``(B, H, W)`` predicted map on ``self.device``."""
+    def _map(self, batch: Tensor, flags: list[bool], extra: Tensor | None = None) -> Tensor:
+        """Raw ``(B, 3, H, W)`` batch (and twins, albedo passes) -> ``(B, H, W)`` predicted map on ``self.device``."""
         if self.output == "patch":
             return self._patch_map(self.prepare(batch, flags).to(self.device))
         h, w = batch.shape[-2:]
         if self.window and (h > self.window or w > self.window):
-            return self._windowed_map(batch, flags, twins)
+            return self._windowed_map(batch, flags, extra)
         if not self.tile or (h <= self.tile and w <= self.tile):
-            return self.net(self._input(batch, flags, twins))[:, 0].clamp(0.0, 1.0)
-        return self._tiled_map(batch, flags, twins)
+            return self.net(self._input(batch, flags, extra))[:, 0].clamp(0.0, 1.0)
+        return self._tiled_map(batch, flags, extra)
 
     def _flat_to_one(self, qmap: Tensor, batch: Tensor, flags: list[bool]) -> None:
         """Set ``qmap`` to 1 in place where the image's whole SSIM window is one bright colour.
@@ -384,7 +406,7 @@ class Scorer:
                 flat = flat_windows(self.prepare(piece, [flag]))[0, cy, cx]
                 qmap[i, rows, cols].masked_fill_(flat.to(qmap.device), 1.0)
 
-    def _tiled_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
+    def _tiled_map(self, batch: Tensor, flags: list[bool], extra: Tensor | None = None) -> Tensor:
         b, _, h, w = batch.shape
         t, a = self.tile, self.align
         half = -(-self.receptive_field // 2)
@@ -392,11 +414,11 @@ class Scorer:
         out = torch.empty(b, h, w, dtype=torch.float32, device=self.device)
         for rows, cols, (ry, rx), (cy, cx) in _halo_tiles(h, w, t, halo):
             window = (slice(None), slice(None), ry, rx)
-            tile = self._input(batch[window], flags, None if twins is None else twins[window])
+            tile = self._input(batch[window], flags, None if extra is None else extra[window])
             out[:, rows, cols] = self.net(tile)[:, 0, cy, cx]
         return out.clamp_(0.0, 1.0)
 
-    def _windowed_map(self, batch: Tensor, flags: list[bool], twins: Tensor | None = None) -> Tensor:
+    def _windowed_map(self, batch: Tensor, flags: list[bool], extra: Tensor | None = None) -> Tensor:
         """Independent ``window``-side pieces, batched; overlaps averaged (``overlap``: tent-weighted).
 
         Side by side, only the last piece in each direction (moved in to touch the border) overlaps.
@@ -414,7 +436,7 @@ class Scorer:
         chunk = max(1, ((self.tile or 512) ** 2) // (wh * ww))
         for y0 in ys:
             rows = (slice(None), slice(None), slice(y0, y0 + wh))
-            strip = self._input(batch[rows], flags, None if twins is None else twins[rows])  # (B, C, wh, W)
+            strip = self._input(batch[rows], flags, None if extra is None else extra[rows])  # (B, C, wh, W)
             pieces = torch.stack([strip[..., x0 : x0 + ww] for x0 in xs], dim=1).flatten(0, 1)  # (B*nx, C, wh, ww)
             pred = torch.cat([self.net(pieces[i : i + chunk])[:, 0] for i in range(0, pieces.shape[0], chunk)])
             pred = pred.view(b, len(xs), wh, ww)

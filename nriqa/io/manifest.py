@@ -8,6 +8,10 @@ Roles:
   * ``reference`` -- the converged image of a (scene, variant); its ``reference`` is itself.
   * ``test``      -- a noisy image on the spp ladder; ``twin`` names its independent twin.
   * ``twin``      -- the same algorithm and spp with another seed; ``twin`` names the test image.
+
+Beside each variant's reference a dataset may hold its albedo pass, ``albedo.exr``
+(:func:`albedo_path`; rendered by ``python -m data_gen.albedo_pass``): not a record, an input of
+the models that take it.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from nriqa.io.atomic import write_text_atomic
 FORMAT = "nriqa-dataset/1"
 MANIFEST_NAME = "manifest.json"
 ROLES = ("reference", "test", "twin")
+ALBEDO_FILE = "albedo.exr"
 
 
 class ManifestError(NriqaError):
@@ -119,6 +124,11 @@ def read_datasets(roots: str | os.PathLike | Sequence[str | os.PathLike]) -> lis
                 )
             )
     return out
+
+
+def albedo_path(record: Record) -> str:
+    """Where the albedo pass of ``record``'s scene variant lies: ``albedo.exr`` beside its reference."""
+    return str(Path(record.reference).parent / ALBEDO_FILE)
 
 
 def scenes_of(records: list[Record]) -> list[str]:

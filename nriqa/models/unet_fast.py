@@ -12,9 +12,11 @@ where it costs little, and keeps ``fcnn_fast``'s design at full resolution:
 * Conv1x1(4) + PixelShuffle(2): a full-resolution map; final ReLU.
 
 ``in_channels`` may be 6 for the two-buffer scorer (the image and an independent render of it,
-stacked). Inputs of any size are zero-padded bottom/right to a multiple of ``align`` and cropped
-back. The receptive field is computed from the layers (:func:`receptive_field`), so tiling halos
-follow it and tiled maps equal untiled ones.
+stacked). With ``albedo`` the last three channels are the scene's albedo pass (what renderers give
+their denoisers; nearly noise-free, it tells texture and geometry from noise): 6 channels for the
+image and its albedo, 9 with the twin too. Inputs of any size are zero-padded bottom/right to a
+multiple of ``align`` and cropped back. The receptive field is computed from the layers
+(:func:`receptive_field`), so tiling halos follow it and tiled maps equal untiled ones.
 
 ``window``: the side of the images the weights learnt from (0: not stated). The receptive field
 (206 px at depth 3) outgrows a 64x64 training image, so on larger images the context path meets
@@ -31,7 +33,7 @@ from torch import Tensor, nn
 from nriqa.models import init_keras_, register_model
 from nriqa.models.fcnn import conv_bn_relu
 
-__all__ = ["UNetFast", "unet_fast", "unet_fast_twin", "receptive_field"]
+__all__ = ["UNetFast", "unet_fast", "unet_fast_albedo", "unet_fast_twin", "receptive_field"]
 
 
 def receptive_field(depth: int) -> int:
@@ -53,16 +55,18 @@ class UNetFast(nn.Module):
 
     output = "map"
 
-    def __init__(self, width: int = 32, depth: int = 3, in_channels: int = 3, window: int = 0):
+    def __init__(self, width: int = 32, depth: int = 3, in_channels: int = 3, window: int = 0, albedo: bool = False):
         super().__init__()
         if window < 0:
             raise ValueError(f"UNetFast's window is a side in pixels (0: none), got {window}")
         self.window = int(window)
         if depth < 1:
             raise ValueError(f"UNetFast needs depth >= 1, got {depth}")
-        if in_channels not in (3, 6):
-            raise ValueError(f"UNetFast takes 3 (image) or 6 (image + twin) channels, got {in_channels}")
+        if in_channels - 3 * bool(albedo) not in (3, 6):
+            takes = "6 (image + albedo) or 9 (+ twin)" if albedo else "3 (image) or 6 (image + twin)"
+            raise ValueError(f"UNetFast takes {takes} channels, got {in_channels}")
         self.in_channels = in_channels
+        self.albedo = bool(albedo)
         self.align = 2 ** (depth + 1)
         self.receptive_field = receptive_field(depth)
         # Context helps, but is not needed: any image of two coarsest cells a side is worth scoring.
@@ -114,3 +118,9 @@ def unet_fast(**kwargs) -> UNetFast:
 def unet_fast_twin(**kwargs) -> UNetFast:
     """:class:`UNetFast` on the image and an independent render of it at the same spp (6 channels)."""
     return UNetFast(**{"in_channels": 6, **kwargs})
+
+
+@register_model
+def unet_fast_albedo(**kwargs) -> UNetFast:
+    """:class:`UNetFast` on the image and its scene's albedo pass (6 channels)."""
+    return UNetFast(**{"in_channels": 6, "albedo": True, **kwargs})

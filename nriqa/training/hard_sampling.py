@@ -53,7 +53,8 @@ def image_errors(net: nn.Module, pairs: Sequence[ImagePair], batch_size: int = 6
         noisy = torch.stack([s[0] for s in shown])
         ref = torch.stack([s[1] for s in shown])
         twin = torch.stack([s[2] for s in shown]) if scorer.needs_twin else None
-        predicted = scorer(noisy, hdr=False, twin=twin).score.double()
+        albedo = torch.stack([p.albedo for p in chunk]) if scorer.needs_albedo else None
+        predicted = scorer(noisy, hdr=False, twin=twin, albedo=albedo).score.double()
         true = compute_target("ssim_map", noisy, ref).mean(dim=(1, 2, 3), dtype=torch.float64)
         out[start:stop] = (predicted - true).abs()
         start = stop

@@ -41,12 +41,14 @@ class Item:
         ldr: tone-mapped LDR ``(3, H, W)`` in [0, 1].
         twin: the tone-mapped independent twin ``(3, H, W)`` (same algorithm and spp, another seed), or None.
         true: the true score, mean SSIM map against the reference (NaN where unknown).
+        albedo: the scene variant's albedo pass ``(3, H, W)`` in [0, 1] where the dataset has one, or None.
     """
 
     record: Record
     ldr: Tensor
     twin: Tensor | None = None
     true: float = math.nan
+    albedo: Tensor | None = None
 
 
 @dataclasses.dataclass(frozen=True)

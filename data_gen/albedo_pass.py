@@ -1,0 +1,101 @@
+"""The albedo pass of every scene variant of a dataset: ``{scene}/v{NNN}/albedo.exr`` beside its reference.
+
+Renderers write an albedo pass (the surface colour a ray first meets, before any light) for their
+denoisers; it is nearly free of Monte Carlo noise at a few samples, and shows where the image's
+detail is texture and geometry rather than noise. Models with ``data.albedo_pass=true`` take it as
+a second input (:mod:`nriqa.data.images`). Rendered with Mitsuba's ``aov`` integrator into the
+same box-filtered film as the dataset's images, the variant rebuilt from the dataset's seed exactly
+as :mod:`data_gen.plan` builds it. A file that exists is kept, so an interrupted run resumes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from data_gen.plan import ImageTask, Job, derive_seed
+from data_gen.render import sanitize, scene_dict
+from data_gen.scenes import get_scene
+from nriqa.io.exr import write_exr
+from nriqa.io.manifest import ALBEDO_FILE, Record, albedo_path
+
+ALBEDO_SPP = 64  # antialiased edges; the pass has no lighting noise, only pixel coverage and defocus
+
+
+def variants_of(records: list[Record]) -> dict[str, Record]:
+    """One record per scene variant, keyed by the albedo pass's path relative to the dataset root."""
+    out: dict[str, Record] = {}
+    for rec in records:
+        out.setdefault(albedo_path(rec), rec)
+    return out
+
+
+def albedo_scene(rec: Record, seed: int, spp: int = ALBEDO_SPP) -> dict:
+    """The Mitsuba scene of ``rec``'s variant (dataset ``seed``) with the albedo ``aov`` integrator."""
+    spec = get_scene(rec.scene)
+    vseed = derive_seed(seed, rec.scene, rec.variant)
+    job = Job(rec.scene, rec.variant, vseed, spec.reference_algorithm, (rec.width, rec.height), spec.max_depth, ())
+    task = ImageTask("albedo", "albedo", spp, 0, ALBEDO_FILE, rec.reference)
+    scene = scene_dict(job, task)
+    scene["integrator"] = {"type": "aov", "aovs": "albedo:albedo"}
+    return scene
+
+
+def render_albedo(root: Path, rec: Record, seed: int, spp: int = ALBEDO_SPP) -> Path:
+    """Render and write (atomically) the albedo pass of ``rec``'s variant; return its path."""
+    import mitsuba as mi
+
+    image = np.array(mi.render(mi.load_dict(albedo_scene(rec, seed, spp)), seed=0), dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise RuntimeError(f"{rec.scene} v{rec.variant}: the aov integrator gave shape {image.shape}, not (H, W, 3)")
+    image, _ = sanitize(image)
+    path = root / albedo_path(rec)
+    write_exr(path, np.clip(image, 0.0, 1.0))
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m data_gen.albedo_pass DATA [--spp N]``: the albedo pass of each scene variant of DATA (resumable)."""
+    import argparse
+    import sys
+
+    from nriqa.io.manifest import ManifestError, read_manifest
+    from nriqa.render.backend import ensure_variant
+
+    parser = argparse.ArgumentParser(prog="python -m data_gen.albedo_pass", description=main.__doc__.splitlines()[0])
+    parser.add_argument("data", type=Path, help="dataset root (holds manifest.json)")
+    parser.add_argument("--spp", type=int, default=ALBEDO_SPP, help=f"samples per pixel (default {ALBEDO_SPP})")
+    parser.add_argument("--backend", default="auto", help="Mitsuba variant: auto, llvm_ad_rgb, cuda_ad_rgb, scalar_rgb")
+    args = parser.parse_args(argv)
+    if args.spp < 1:
+        print(f"data_gen.albedo_pass: error: --spp {args.spp}: need at least 1 sample per pixel", file=sys.stderr)
+        return 2
+    try:
+        records, meta = read_manifest(args.data)
+    except ManifestError as exc:
+        print(f"data_gen.albedo_pass: error: {exc}", file=sys.stderr)
+        return 2
+    seed = (meta.get("config") or {}).get("seed")
+    if seed is None:
+        print(
+            f"data_gen.albedo_pass: error: {args.data}/manifest.json names no seed (meta.config.seed); "
+            "render the dataset with python -m data_gen",
+            file=sys.stderr,
+        )
+        return 2
+    todo = {p: r for p, r in variants_of(records).items() if not (args.data / p).is_file()}
+    print(f"{args.data}: {len(variants_of(records))} scene variants, {len(todo)} albedo passes to render")
+    if todo:
+        try:
+            ensure_variant(args.backend)
+        except (RuntimeError, ValueError) as exc:
+            print(f"data_gen.albedo_pass: error: {exc}", file=sys.stderr)
+            return 2
+    for rec in todo.values():
+        render_albedo(args.data, rec, int(seed), args.spp)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
