@@ -55,8 +55,24 @@ def render_albedo(root: Path, rec: Record, seed: int, spp: int = ALBEDO_SPP) -> 
     return path
 
 
+def render_scene_file(scene_file: Path, out: Path, spp: int = ALBEDO_SPP, **params: int) -> np.ndarray:
+    """The albedo pass of a Mitsuba scene file (its own sensor and film; ``params`` as ``mi.load_file``
+    takes them, e.g. ``res=128``), written atomically to ``out``; returns it ``(H, W, 3)``."""
+    import mitsuba as mi
+
+    scene = mi.load_file(str(scene_file), **params)
+    aov = mi.load_dict({"type": "aov", "aovs": "albedo:albedo"})
+    image = np.array(mi.render(scene, integrator=aov, spp=spp, seed=0), dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise RuntimeError(f"{scene_file}: the aov integrator gave shape {image.shape}, not (H, W, 3)")
+    image = np.clip(sanitize(image)[0], 0.0, 1.0)
+    write_exr(out, image)
+    return image
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m data_gen.albedo_pass DATA [--spp N]``: the albedo pass of each scene variant of DATA (resumable)."""
+    """``python -m data_gen.albedo_pass DATA [--spp N]``: the albedo pass of each scene variant of DATA (resumable);
+    ``--scene-file XML --out FILE [--res N]``: of one Mitsuba scene file."""
     import argparse
     import sys
 
@@ -64,13 +80,22 @@ def main(argv: list[str] | None = None) -> int:
     from nriqa.render.backend import ensure_variant
 
     parser = argparse.ArgumentParser(prog="python -m data_gen.albedo_pass", description=main.__doc__.splitlines()[0])
-    parser.add_argument("data", type=Path, help="dataset root (holds manifest.json)")
+    parser.add_argument("data", type=Path, nargs="?", help="dataset root (holds manifest.json)")
+    parser.add_argument("--scene-file", type=Path, help="instead of DATA: one Mitsuba scene file (with --out)")
+    parser.add_argument("--out", type=Path, help="with --scene-file: the albedo pass's EXR file")
+    parser.add_argument("--res", type=int, default=None, help="with --scene-file: its $res parameter, if it has one")
     parser.add_argument("--spp", type=int, default=ALBEDO_SPP, help=f"samples per pixel (default {ALBEDO_SPP})")
     parser.add_argument("--backend", default="auto", help="Mitsuba variant: auto, llvm_ad_rgb, cuda_ad_rgb, scalar_rgb")
     args = parser.parse_args(argv)
     if args.spp < 1:
         print(f"data_gen.albedo_pass: error: --spp {args.spp}: need at least 1 sample per pixel", file=sys.stderr)
         return 2
+    if (args.data is None) == (args.scene_file is None) or (args.scene_file is None) != (args.out is None):
+        message = "give a dataset root DATA, or --scene-file XML with --out FILE"
+        print(f"data_gen.albedo_pass: error: {message}", file=sys.stderr)
+        return 2
+    if args.scene_file is not None:
+        return _one_scene_file(args)
     try:
         records, meta = read_manifest(args.data)
     except ManifestError as exc:
@@ -94,6 +119,26 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     for rec in todo.values():
         render_albedo(args.data, rec, int(seed), args.spp)
+    return 0
+
+
+def _one_scene_file(args) -> int:
+    """``--scene-file XML --out FILE``: one line on success, one line and exit 2 on a file Mitsuba cannot load."""
+    import sys
+
+    from nriqa.render.backend import ensure_variant
+
+    if not args.scene_file.is_file():
+        print(f"data_gen.albedo_pass: error: {args.scene_file}: no such scene file", file=sys.stderr)
+        return 2
+    try:
+        ensure_variant(args.backend)
+        params = {} if args.res is None else {"res": args.res}
+        image = render_scene_file(args.scene_file, args.out, args.spp, **params)
+    except (RuntimeError, ValueError) as exc:  # Mitsuba's load errors are RuntimeError
+        print(f"data_gen.albedo_pass: error: {args.scene_file}: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out}: {image.shape[1]}x{image.shape[0]} albedo pass of {args.scene_file}")
     return 0
 
 

@@ -177,3 +177,34 @@ def test_the_albedo_pass_refuses_a_folder_without_a_manifest_in_one_line(tmp_pat
     proc = run_albedo_pass(str(tmp_path))
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("data_gen.albedo_pass: error:") and proc.stderr.count("\n") == 1
+
+
+WALL = """<scene version="3.0.0">
+    <default name="res" value="8"/>
+    <sensor type="perspective">
+        <float name="fov" value="30"/>
+        <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm">
+            <integer name="width" value="$res"/><integer name="height" value="$res"/><rfilter type="box"/>
+        </film>
+    </sensor>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.25, 0.5, 0.75"/></bsdf>
+    </shape>
+</scene>
+"""
+
+
+def test_the_albedo_pass_of_a_scene_file_is_its_reflectance(tmp_path):
+    pytest.importorskip("mitsuba")
+    (tmp_path / "wall.xml").write_text(WALL)
+    proc = run_albedo_pass("--scene-file", str(tmp_path / "wall.xml"), "--out", str(tmp_path / "a.exr"), "--res", "12")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    albedo = read_exr(tmp_path / "a.exr")
+    assert albedo.shape == (12, 12, 3)
+    assert np.allclose(albedo, [0.25, 0.5, 0.75], atol=1e-4)  # a wall filling the view: its reflectance everywhere
+    (tmp_path / "bad.xml").write_text('<scene version="3.0.0"><shape type="nope"/></scene>')
+    for args in (["--scene-file", str(tmp_path / "bad.xml"), "--out", "x.exr"], ["--scene-file", "wall.xml"]):
+        proc = run_albedo_pass(*args)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr

@@ -158,6 +158,15 @@ def test_external_highest_spp_reference_and_seed_twins(tmp_path):
     assert not any(r.path == ref.path for r in records if r.role != "reference")
 
 
+def test_an_albedo_pass_beside_a_reference_is_not_a_test_image(external):
+    before = scan_external(external)
+    write_exr(external / "room" / "albedo.exr", np.full((32, 32, 3), 0.5, np.float32))
+    assert scan_external(external) == before
+    write_exr(external / "albedo.exr", np.full((32, 32, 3), 0.5, np.float32))  # beside no reference: a stray file
+    with pytest.raises(ExternalError, match="name does not match pattern"):
+        scan_external(external)
+
+
 def test_external_png_is_display_referred_and_exr_tone_mapped(tmp_path):
     Image.fromarray(np.full((8, 8, 3), 128, np.uint8)).save(tmp_path / "a.png")
     assert float(load_display(tmp_path / "a.png").mean()) == pytest.approx(128 / 255)

@@ -15,6 +15,7 @@ PARAMS = {
     "fcnn_fast": 90_052,
     "map_mean": 2 * 371_700,
     "unet_fast": 371_700,
+    "unet_fast_albedo": 375_156,
     "unet_fast_twin": 375_156,
 }
 

@@ -15,6 +15,9 @@ fields over the path relative to the folder, without its suffix (default
 * a glob relative to the folder, ``{scene}`` substituted (default ``"{scene}/reference.*"``), or
 * ``"highest:ALGO"``: the highest-spp image of algorithm ALGO in that scene (it is then not a test image).
 
+An ``albedo.exr`` beside a scene's reference is its albedo pass (:func:`nriqa.io.manifest.albedo_path`),
+for scorers that take one, not a test image.
+
 Images are EXR (linear HDR, tone-mapped by :func:`nriqa.core.tonemap.tonemap` when loaded) or PNG/JPEG
 (display-referred LDR: used as they are, no tone map). :func:`nriqa.io.imread.load_ldr` loads either.
 """
@@ -27,7 +30,7 @@ from pathlib import Path
 
 from nriqa.errors import NriqaError
 from nriqa.io.imread import SUFFIXES, read_image
-from nriqa.io.manifest import Record, write_manifest
+from nriqa.io.manifest import ALBEDO_FILE, Record, write_manifest
 
 DEFAULT_PATTERN = "{scene}/{algorithm} - {spp}"
 DEFAULT_REFERENCE = "{scene}/reference.*"
@@ -108,7 +111,8 @@ def _parse(folder: Path, pattern: str, reference: str) -> tuple[list[tuple[Path,
             unparsed.append(path)
     refs = {s: _find_reference(folder, s, reference, parsed) for s in sorted({f["scene"] for _, f in parsed})}
     is_glob_reference = not reference.startswith("highest:")
-    bad = [p for p in unparsed if not (is_glob_reference and p in refs.values())]
+    albedo_passes = {ref.parent / ALBEDO_FILE for ref in refs.values()}  # beside a reference: not a test image
+    bad = [p for p in unparsed if not (is_glob_reference and p in refs.values()) and p not in albedo_passes]
     if bad:
         example = pattern
         for field, value in _EXAMPLE.items():
