@@ -118,7 +118,7 @@ def scorer() -> Scorer:
 def test_the_scorer_asks_for_the_pass_and_refuses_it_where_not_taken(scorer):
     image = torch.rand(3, 64, 64)
     assert scorer.needs_albedo and not scorer.needs_twin
-    with pytest.raises(ScorerInputError, match="albedo pass \\(albedo=\\)"):
+    with pytest.raises(ScorerInputError, match="pass albedo="):
         scorer(image, hdr=False)
     with pytest.raises(ScorerInputError, match="the albedo pass is \\(32, 64\\)"):
         scorer(image, hdr=False, albedo=torch.rand(3, 32, 64))

@@ -323,16 +323,28 @@ class Scorer:
         image's, or ``None``; a refusal names what is wrong."""
         name = type(self.net).__name__
         parts = []
-        for what, given, needed, how in (
-            ("twin", twin, self.needs_twin, "an independent render of it (twin=, predict.py --twin TWIN)"),
-            ("albedo pass", albedo, self.needs_albedo, "its scene's albedo pass (albedo=)"),
+        for what, given, needed, missing, unwanted in (
+            (
+                "twin",
+                twin,
+                self.needs_twin,
+                "scores an image with its twin: pass twin= (predict.py --twin TWIN)",
+                "scores one image; a twin needs a two-buffer model (dual_fast)",
+            ),
+            (
+                "albedo pass",
+                albedo,
+                self.needs_albedo,
+                "scores an image with its scene's albedo pass: pass albedo= (predict.py --albedo ALBEDO)",
+                "takes no albedo pass; leave it out, or choose a model trained with one (unet_fast_albedo)",
+            ),
         ):
             if given is None:
                 if needed:
-                    raise ScorerInputError(f"{name} scores an image with {how}")
+                    raise ScorerInputError(f"{name} {missing}")
                 continue
             if not needed:
-                raise ScorerInputError(f"{name} takes no {what}; leave it out, or choose a model that takes one")
+                raise ScorerInputError(f"{name} {unwanted}")
             batch, _ = _as_batch(given)
             if batch.shape != shape:
                 raise ScorerInputError(
