@@ -221,18 +221,28 @@ def _failure(name: str, exc: Exception) -> str:
 def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
     """Why ``--twin`` or ``--albedo`` does not fit the model or the images, or ``None``."""
     model = type(scorer.net).__name__
-    if scorer.needs_twin and args.twin is None:
-        return f"{model} scores an image with its twin: pass --twin TWIN (an independent render at the same spp)"
-    if not scorer.needs_twin and args.twin is not None:
-        return f"{model} scores one image; --twin needs a two-buffer model (--model dual_fast)"
-    if args.twin is not None and len(args.twin) != len(args.images):
-        return f"{len(args.images)} images but {len(args.twin)} twins: give one twin per image, in order"
-    if scorer.needs_albedo and args.albedo is None:
-        return f"{model} scores an image with its scene's albedo pass: pass --albedo ALBEDO (one per image)"
-    if not scorer.needs_albedo and args.albedo is not None:
-        return f"{model} takes no albedo pass; leave --albedo out, or choose a model trained with one"
-    if args.albedo is not None and len(args.albedo) != len(args.images):
-        return f"{len(args.images)} images but {len(args.albedo)} albedo passes: give one per image, in order"
+    for given, needed, missing, unwanted, what in (
+        (
+            args.twin,
+            scorer.needs_twin,
+            "scores an image with its twin: pass --twin TWIN (an independent render at the same spp)",
+            "scores one image; --twin needs a two-buffer model (--model dual_fast)",
+            "twins: give one twin per image",
+        ),
+        (
+            args.albedo,
+            scorer.needs_albedo,
+            "scores an image with its scene's albedo pass: pass --albedo ALBEDO (one per image)",
+            "takes no albedo pass; leave --albedo out, or choose a model trained with one",
+            "albedo passes: give one per image",
+        ),
+    ):
+        if needed and given is None:
+            return f"{model} {missing}"
+        if not needed and given is not None:
+            return f"{model} {unwanted}"
+        if given is not None and len(given) != len(args.images):
+            return f"{len(args.images)} images but {len(given)} {what}, in order"
     return None
 
 
