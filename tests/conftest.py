@@ -7,6 +7,7 @@ stability tests.
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,11 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nriqa.io.exr import write_exr
-from nriqa.io.manifest import Record, write_manifest
+from nriqa.io.exr import read_exr, write_exr
+from nriqa.io.manifest import ALBEDO_FILE, Record, write_manifest
 
 SCENES = ("alpha", "beta", "gamma")
 SPPS = (1, 4, 16, 64)
+CONSTANT = (0.3, 0.5, 0.7)  # an albedo the tone map or a display would change
 
 
 def make_dataset(root: Path, size: int = 80, scenes=SCENES, spps=SPPS, twins: bool = True) -> Path:
@@ -61,10 +63,30 @@ def make_dataset(root: Path, size: int = 80, scenes=SCENES, spps=SPPS, twins: bo
     return root
 
 
+def with_albedo(src: Path, dst: Path, constant: bool = False) -> Path:
+    """A copy of the synthetic dataset with an albedo pass beside each reference: stripes, or CONSTANT."""
+    shutil.copytree(src, dst)
+    for k, ref in enumerate(sorted(dst.glob("*/reference.exr"))):
+        h, w = read_exr(ref).shape[:2]
+        if constant:
+            albedo = np.broadcast_to(np.array(CONSTANT, dtype=np.float32), (h, w, 3))
+        else:
+            xx = np.arange(w)[None, :, None] + np.zeros((h, 1, 3))
+            albedo = 0.2 + 0.6 * ((xx // (3 + k)) % 2) * np.array([1.0, 0.7, 0.4])
+        write_exr(ref.parent / ALBEDO_FILE, albedo.astype(np.float32))
+    return dst
+
+
 @pytest.fixture(scope="session")
 def synthetic_dataset(tmp_path_factory) -> Path:
     """3 scenes (alpha, beta, gamma) x (reference + test and twin at 1, 4, 16, 64 spp), 80x80."""
     return make_dataset(tmp_path_factory.mktemp("synthetic"))
+
+
+@pytest.fixture(scope="session")
+def striped_dataset(synthetic_dataset, tmp_path_factory) -> Path:
+    """The synthetic dataset with a striped albedo pass beside each reference."""
+    return with_albedo(synthetic_dataset, tmp_path_factory.mktemp("albedo") / "d")
 
 
 REPO = Path(__file__).resolve().parents[1]

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from conftest import CONSTANT, with_albedo
 from test_batched_patches import MIX, make_dm
 
 from nriqa.core.display import apply_display
@@ -22,36 +23,16 @@ from nriqa.data.patches import TONEMAP, cut_all, item_generator
 from nriqa.eval.dataset import load_dataset
 from nriqa.eval.predictors import ScorerPredictor
 from nriqa.inference.scorer import Scorer, ScorerInputError
-from nriqa.io.exr import read_exr, write_exr
+from nriqa.io.exr import read_exr
 from nriqa.io.manifest import ALBEDO_FILE, read_datasets, read_manifest
 from nriqa.models import create_model
 from nriqa.models.unet_fast import UNetFast
 
 REPO = Path(__file__).resolve().parents[1]
-CONSTANT = (0.3, 0.5, 0.7)  # an albedo the tone map or a display would change
 
 
-def with_albedo(src: Path, dst: Path, constant: bool = False) -> Path:
-    """A copy of the synthetic dataset with an albedo pass beside each reference: stripes, or CONSTANT."""
-    shutil.copytree(src, dst)
-    for k, ref in enumerate(sorted(dst.glob("*/reference.exr"))):
-        h, w = read_exr(ref).shape[:2]
-        if constant:
-            albedo = np.broadcast_to(np.array(CONSTANT, dtype=np.float32), (h, w, 3))
-        else:
-            xx = np.arange(w)[None, :, None] + np.zeros((h, 1, 3))
-            albedo = 0.2 + 0.6 * ((xx // (3 + k)) % 2) * np.array([1.0, 0.7, 0.4])
-        write_exr(ref.parent / ALBEDO_FILE, albedo.astype(np.float32))
-    return dst
-
-
-@pytest.fixture(scope="module")
-def striped(synthetic_dataset, tmp_path_factory) -> Path:
-    return with_albedo(synthetic_dataset, tmp_path_factory.mktemp("albedo") / "d")
-
-
-def test_pairs_carry_their_variants_albedo_pass(striped):
-    records = [r for r in read_datasets(striped) if r.role != "reference"]
+def test_pairs_carry_their_variants_albedo_pass(striped_dataset):
+    records = [r for r in read_datasets(striped_dataset) if r.role != "reference"]
     pairs = load_pairs(records, albedo=True)
     for p in pairs:
         on_disk = torch.from_numpy(read_exr(Path(p.record.reference).parent / ALBEDO_FILE)).permute(2, 0, 1)
@@ -68,10 +49,10 @@ def test_a_missing_albedo_pass_is_one_line_naming_the_file_and_the_fix(synthetic
     assert "\n" not in str(err.value)
 
 
-def test_the_pass_changes_no_other_draw_and_is_cut_textured_jittered_not_displayed(striped):
+def test_the_pass_changes_no_other_draw_and_is_cut_textured_jittered_not_displayed(striped_dataset):
     kw = dict(display=MIX, albedo_p=0.5)
-    plain = make_dm(striped, **kw).train_set
-    ds = make_dm(striped, albedo_pass=True, **kw).train_set
+    plain = make_dm(striped_dataset, **kw).train_set
+    ds = make_dm(striped_dataset, albedo_pass=True, **kw).train_set
     ks = list(range(24))
     for k, (x, y), (px, py) in zip(ks, ds.__getitems__(ks), plain.__getitems__(ks)):
         assert x.shape[0] == 6
@@ -142,9 +123,9 @@ def test_the_scorer_feeds_the_pass_as_it_is_tiled_or_not(scorer, one_thread):
     assert torch.isfinite(scorer(image, hdr=False, albedo=bad).score).all()
 
 
-def test_the_evaluation_loads_the_pass_where_the_dataset_has_one(striped, synthetic_dataset, scorer):
-    records, _ = read_manifest(striped)
-    items = load_dataset(striped, records).items
+def test_the_evaluation_loads_the_pass_where_the_dataset_has_one(striped_dataset, synthetic_dataset, scorer):
+    records, _ = read_manifest(striped_dataset)
+    items = load_dataset(striped_dataset, records).items
     assert items and all(i.albedo is not None and i.albedo.shape == i.ldr.shape for i in items)
     assert math.isfinite(ScorerPredictor("albedo", scorer).predict(items[0]).score)
     bare = load_dataset(synthetic_dataset, read_manifest(synthetic_dataset)[0]).items

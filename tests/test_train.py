@@ -46,7 +46,7 @@ def test_experiments_exist():
 
 
 @pytest.mark.parametrize("experiment", EXPERIMENTS)
-def test_every_experiment_runs_one_batch(experiment, synthetic_dataset, tmp_path):
+def test_every_experiment_runs_one_batch(experiment, synthetic_dataset, striped_dataset, tmp_path):
     # 32x32 patches keep the big FCNNs quick on CPU; the configs are otherwise the real ones
     overrides = (
         f"experiment={experiment}",
@@ -56,6 +56,8 @@ def test_every_experiment_runs_one_batch(experiment, synthetic_dataset, tmp_path
         "data.patch_size=32",
     )
     cfg = compose_cfg(tmp_path, synthetic_dataset, *overrides)
+    if cfg.data.get("albedo_pass"):  # the model reads the albedo pass beside each reference
+        cfg = compose_cfg(tmp_path, striped_dataset, *overrides)
     metrics, objects = train(cfg)
     (row,) = objects["model"].history
     assert torch.isfinite(torch.tensor(row["train/loss"])) and "val/loss" in row
