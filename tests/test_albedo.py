@@ -6,7 +6,7 @@ import pytest
 import torch
 from test_batched_patches import MIX, make_dm
 
-from nriqa.data.albedo import LOW_RANGE, check_albedo_p, sample_albedo, texture
+from nriqa.data.albedo import LINE_DUTY, LOW_RANGE, check_albedo_p, grille, sample_albedo, texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import TONEMAP, item_generator
 from nriqa.data.targets import compute_target
@@ -35,6 +35,36 @@ def test_texture_of_one_pixel_and_of_a_large_patch():
     assert bool(torch.isfinite(texture(2, 512)).all())
 
 
+def test_a_grille_is_a_function_of_its_seed_thin_dark_lines_on_a_bright_ground():
+    a = grille(3, 32)
+    assert torch.equal(a, grille(3, 32)) and a.dtype == torch.float32 and a.shape == (3, 32, 32)
+    assert not torch.equal(a, grille(4, 32))
+    greys = 0
+    for seed in range(40):
+        t = grille(seed, 48)
+        assert bool(torch.isfinite(t).all())
+        assert float(t.min()) >= LOW_RANGE[0] * 0.7 - 1e-6 and float(t.max()) <= 1.0
+        assert float(t.std()) > 0.0
+        c = t[0]
+        share = (c - c.min()) / (c.max() - c.min())  # 0 on a line, 1 on the ground
+        assert float(share.mean()) > (1.0 - LINE_DUTY[1]) ** 2 - 0.1  # at most two sets of lines of at most 40 %
+        # lines every 3-12 pixels: any 12-pixel run of a row or a column crosses one, unless it runs along them
+        rows = share.unfold(1, 12, 12).amin(-1).mean()
+        cols = share.unfold(0, 12, 12).amin(-1).mean()
+        assert min(float(rows), float(cols)) < 0.9
+        greys += len(torch.unique(c)) > 2  # box-filtered: a line's edge shows as grey
+    assert greys > 30
+
+
+def test_texture_draws_grilles_in_the_share_asked():
+    assert all(torch.equal(texture(s, 24, lines=1.0), grille(s, 24)) for s in range(20))
+    assert not any(torch.equal(texture(s, 24), grille(s, 24)) for s in range(20))
+    half = sum(torch.equal(texture(s, 24, lines=0.5), grille(s, 24)) for s in range(60))
+    assert 15 < half < 45
+    assert grille(1, 1).shape == (3, 1, 1) and bool(torch.isfinite(grille(1, 1)).all())
+    assert bool(torch.isfinite(grille(2, 512)).all())
+
+
 def test_no_albedo_draws_nothing():
     g = item_generator(1, 2)
     state = g.get_state()
@@ -50,6 +80,27 @@ def test_a_probability_outside_zero_one_is_one_line(p, synthetic_dataset):
         check_albedo_p(p)
     with pytest.raises(ValueError, match="not a probability"):
         NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_p=p)
+
+
+@pytest.mark.parametrize("lines", [-0.1, 1.5, float("nan")])
+def test_a_share_of_grilles_outside_zero_one_is_one_line(lines, synthetic_dataset):
+    with pytest.raises(ValueError, match=r"data.albedo_lines=.* is not a probability.*switches the grilles off\)$"):
+        NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_p=0.5, albedo_lines=lines)
+
+
+def test_grilles_are_multiplied_into_noisy_and_reference_alike(synthetic_dataset):
+    kw = dict(jitter={"hsv": False, "geometric": False})
+    bare = make_dm(synthetic_dataset, **kw).train_set
+    noise = make_dm(synthetic_dataset, albedo_p=1.0, **kw).train_set
+    lined = make_dm(synthetic_dataset, albedo_p=1.0, albedo_lines=1.0, **kw).train_set
+    for k in range(8):
+        a, d = noise.draw(k), lined.draw(k)
+        assert (a.pair.record, a.y, a.x, a.display, a.albedo) == (d.pair.record, d.y, d.x, d.display, d.albedo)
+        t = grille(d.albedo, 32)  # the same draws: only the texture's kind changes
+        (x0, _), (x1, y1) = bare[k], lined[k]
+        assert torch.allclose(x1, x0 * t, atol=1e-6)
+        ref = d.pair.ref[:, d.y : d.y + 32, d.x : d.x + 32] * t
+        assert torch.allclose(y1, compute_target("ssim_map", x1[None], ref[None])[0], atol=1e-6)
 
 
 @pytest.mark.parametrize("display", [None, MIX])

@@ -34,7 +34,7 @@ def one_by_one(ds, k):
     display = ds.display.sample(g) if ds.display is not None else TONEMAP
     albedo = ds.draw(k).albedo  # drawn last, applied first (to the linear radiance)
     if albedo is not None:
-        members = [m * texture(albedo, ds.patch_size) for m in members]
+        members = [m * texture(albedo, ds.patch_size, ds.albedo_lines) for m in members]
     if pair.linear:
         members = [apply_display(m, display, pair.key) for m in members]
     if ds.hsv or ds.geometric:
@@ -56,6 +56,7 @@ def one_by_one(ds, k):
         {"target": "patch_mae"},
         {"albedo_p": 0.5},
         {"display": MIX, "twins": True, "albedo_p": 0.5},
+        {"albedo_p": 0.5, "albedo_lines": 0.5},
     ],
 )
 def test_a_batch_equals_its_items_made_one_by_one(synthetic_dataset, kw):

@@ -62,6 +62,8 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_p: the share of training patches multiplied by a random albedo texture, noisy image,
             twin and reference alike, before the display and the target (:mod:`nriqa.data.albedo`);
             0 (the default) draws none and leaves every other draw as it was.
+        albedo_lines: the share of those albedo textures that are grilles of thin lines, as fine
+            geometry and its shadows draw (:func:`nriqa.data.albedo.grille`); 0 (the default): none.
         albedo_pass: also feed the model each scene variant's albedo pass (``albedo.exr`` beside the
             reference, ``python -m data_gen.albedo_pass DATA``), stacked after the image (and twin):
             cut, textured and jittered with the image, never displayed.
@@ -91,6 +93,7 @@ class NRIQADataModule(L.LightningDataModule):
         twins: bool = False,
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
+        albedo_lines: float = 0.0,
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -112,6 +115,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = bool(albedo_pass)
+        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines")
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -158,6 +162,7 @@ class NRIQADataModule(L.LightningDataModule):
             twins=self.twins,
             albedo_p=self.albedo_p,
             albedo_pass=self.albedo_pass,
+            albedo_lines=self.albedo_lines,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

@@ -107,6 +107,7 @@ class TrainPatches(Dataset):
         twins: bool = False,
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
+        albedo_lines: float = 0.0,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
@@ -123,6 +124,7 @@ class TrainPatches(Dataset):
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = albedo_pass
+        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines")
         self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
@@ -180,7 +182,7 @@ class TrainPatches(Dataset):
             torch.stack([src[j][:, d.y : d.y + size, d.x : d.x + size] for src, d in zip(sources, draws)])
             for j in range(len(sources[0]))
         ]
-        members = albedo_batch(draws, members)
+        members = albedo_batch(draws, members, self.albedo_lines)
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
         members = display_batch(draws, members[:shown]) + members[shown:]
         members = jitter_batch(draws, members)
@@ -202,13 +204,16 @@ class Draw:
     albedo: int | None = None  # the seed of the patch's albedo texture (nriqa.data.albedo), or none
 
 
-def albedo_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
-    """Each item of the ``(B, C, P, P)`` member stacks multiplied by its draw's albedo texture, the same for every member."""
+def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
+    """Each item of the ``(B, C, P, P)`` member stacks multiplied by its draw's albedo texture, the same for every member.
+
+    ``lines``: the share of those textures that are grilles of thin lines (:func:`nriqa.data.albedo.texture`).
+    """
     rows = [i for i, d in enumerate(draws) if d.albedo is not None]
     if not rows:
         return members
     size = members[0].shape[-1]
-    textures = torch.stack([texture(draws[i].albedo, size) for i in rows]).to(members[0])
+    textures = torch.stack([texture(draws[i].albedo, size, lines) for i in rows]).to(members[0])
     out = [m.clone() for m in members]
     for o in out:
         o[rows] = o[rows] * textures
