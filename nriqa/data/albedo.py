@@ -111,10 +111,9 @@ def sample_albedo(generator: torch.Generator, p: float) -> int | None:
     return int(seed) if float(u) < p else None
 
 
-def check_albedo_p(p: float, name: str = "albedo_p") -> float:
-    """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.<name>``."""
+def check_albedo_p(p: float, name: str = "albedo_p", what: str = "the albedo textures") -> float:
+    """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.<name>`` and ``what`` 0 switches off."""
     p = float(p)
     if not 0.0 <= p <= 1.0:
-        off = "the albedo textures off" if name == "albedo_p" else "the grilles off"
-        raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {off})")
+        raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
     return p

@@ -115,7 +115,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = bool(albedo_pass)
-        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines")
+        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene

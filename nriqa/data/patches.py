@@ -124,7 +124,7 @@ class TrainPatches(Dataset):
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = albedo_pass
-        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines")
+        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
