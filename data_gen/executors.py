@@ -72,8 +72,22 @@ def run_local(out: Path, jobs: list[Job], backend: str, workers: int, on_done: O
     args = (backend, local_threads(workers))
     with cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker, initargs=args) as pool:
         futures = {pool.submit(run_job, str(out), job, backend): job for job in jobs}
-        for fut in cf.as_completed(futures):
-            on_done(futures[fut], *fut.result())
+        collect(futures, on_done)
+
+
+def collect(futures: Mapping[cf.Future, Job], on_done: OnDone) -> None:
+    """Report each job as it finishes; a worker that died takes the pool with it: one line naming a job it held."""
+    for fut in cf.as_completed(futures):
+        try:
+            result = fut.result()
+        except cf.process.BrokenProcessPool:
+            job = futures[fut]
+            raise ExecutorError(
+                f"a render worker died abruptly (a crash inside Mitsuba, or killed, e.g. out of memory) with "
+                f"{job.scene} v{job.variant:03d} {job.algorithm} or a job beside it in flight; finished images are "
+                "kept, so rerun the same command to resume; if it dies again there, try backend=scalar_rgb or jobs=1"
+            ) from None
+        on_done(futures[fut], *result)
 
 
 # --- Dask ---------------------------------------------------------------------------------------

@@ -180,6 +180,22 @@ def test_llvm_probe_survives_a_broken_libllvm(monkeypatch):
     assert not ok and "llvm_ad_rgb probe" in reason
 
 
+def test_a_local_worker_that_dies_stops_the_run_with_one_line():
+    import concurrent.futures as cf
+
+    from data_gen.executors import ExecutorError, collect
+
+    job = plan_dataset(["cornell"], 1, resolution=(32, 32), ladder_top=16)[0]
+    done = []
+    with cf.ProcessPoolExecutor(1) as pool:
+        futures = {pool.submit(os._exit, 3): job}  # the worker dies, as a crash in Mitsuba kills it
+        with pytest.raises(ExecutorError) as info:
+            collect(futures, lambda *a: done.append(a))
+    message = str(info.value)
+    assert f"cornell v000 {job.algorithm}" in message and "rerun the same command to resume" in message
+    assert "\n" not in message and not done
+
+
 def test_sanitize_counts_and_zeroes_nonfinite_pixels():
     img = np.ones((4, 5, 3), dtype=np.float32)
     img[0, 0, 0] = np.nan
