@@ -13,7 +13,18 @@ import numpy as np
 from data_gen.scenes import SceneSpec, register_scene
 from data_gen.scenes._exposure import exposure, scale_emitters
 from data_gen.scenes._meshes import rods_mesh
-from data_gen.scenes._parts import PATH_FAMILY, camera, diffuse, floor, jitter, random_color, rgb, textured, transform
+from data_gen.scenes._parts import (
+    PATH_FAMILY,
+    camera,
+    diffuse,
+    floor,
+    jitter,
+    random_color,
+    rectangle,
+    rgb,
+    textured,
+    transform,
+)
 from data_gen.scenes._photos import photo_texture
 
 CONTROL_POINTS = 5  # per fibre: four straight segments through a bent stalk
@@ -88,11 +99,7 @@ def build(rng: np.random.Generator) -> dict:
             "radius": 0.15,
             "bsdf": diffuse(random_color(rng, 0.3, 0.7)),
         }
-    scene["back"] = {
-        "type": "rectangle",
-        "to_world": t().translate([0, 1.5, -3.0]).scale([6, 1.5, 1]),
-        "bsdf": diffuse(random_color(rng, 0.2, 0.6)),
-    }
+    scene["back"] = rectangle(t().translate([0, 1.5, -3.0]).scale([6, 1.5, 1]), diffuse(random_color(rng, 0.2, 0.6)))
     return scale_emitters(scene, gain)
 
 
