@@ -36,6 +36,7 @@ NEW = (
     "textured_light",
     "surfaces",
     "strands",
+    "foliage",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -213,6 +214,60 @@ def test_strand_fibres_stand_taper_and_become_meshes():
     meshes = _tuft(np.random.default_rng(4), "t", [0.0, 0.0], 30, 0.4, 0.005)
     assert len(meshes) == CONTROL_POINTS - 1
     assert all(m.face_count() == 30 * (2 * 4 + 2 * 2) for m in meshes), "30 four-sided prisms a segment"
+
+
+def test_leaf_outline_is_pointed_and_notched():
+    from data_gen.scenes._meshes import leaf_outline
+
+    smooth, toothed = leaf_outline(1.0, 0.3, 0), leaf_outline(1.0, 0.3, 4)
+    assert smooth.shape == toothed.shape == (14, 2)
+    assert tuple(smooth[0]) == (0.0, 0.0) and tuple(smooth[7]) == (0.0, 1.0), "base and tip on the midrib"
+    assert np.allclose(smooth[1:7, 0], -smooth[8:][::-1, 0]), "the two halves mirror each other"
+    assert 0 < np.abs(smooth[:, 0]).max() <= 0.3
+    assert (np.abs(toothed[:, 0]) <= np.abs(smooth[:, 0]) + 1e-12).all() and not np.allclose(toothed, smooth)
+
+
+def test_leaves_become_one_folded_coloured_mesh():
+    from data_gen.scenes._meshes import VERTEX_COLOR, leaf_outline, leaves_mesh
+
+    outline = leaf_outline(1.0, 0.3, 0)
+    bsdf = {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": VERTEX_COLOR}}
+    bases, normals, ups = [[0, 0, 0], [1, 0, 0]], [[0, 1, 0], [0, 0, 1]], [[0, 0, 1], [0, 1, 0]]
+    flat = leaves_mesh(
+        "l", bases, normals, ups, outline, [1.0, 2.0], bsdf, fold=0.0, colors=[[0.1, 0.3, 0], [0.5, 0.2, 0]]
+    )
+    assert (flat.vertex_count(), flat.face_count()) == (2 * 15, 2 * 14), "a fan of 14 triangles a leaf"
+    x, y = outline[:, 0], outline[:, 1]
+    area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    assert flat.surface_area() == pytest.approx(area * (1 + 4), rel=1e-5), "each leaf its outline's area, scaled"
+    pos = np.array(mi.traverse(flat)["vertex_positions"]).reshape(-1, 3)
+    assert np.allclose(pos[:15, 1], 0) and np.allclose(pos[15:, 2], 0), "flat: in the plane its normal gives"
+    assert pos[:15, 2].max() == pytest.approx(1.0) and pos[15:, 1].max() == pytest.approx(2.0), "grows along its up"
+    folded = leaves_mesh("f", bases[:1], normals[:1], ups[:1], outline, 1.0, bsdf, fold=0.4)
+    assert (
+        folded.surface_area() > area
+        and np.array(mi.traverse(folded)["vertex_positions"]).reshape(-1, 3)[:, 1].max() > 0
+    )
+    assert flat.has_attribute("vertex_color") and not folded.has_attribute("vertex_color")
+    with pytest.raises(ValueError, match="not along its normal"):
+        leaves_mesh("b", bases[:1], normals[:1], normals[:1], outline, 1.0, bsdf)
+
+
+def test_foliage_colours_its_leaves_one_by_one_and_looks_up_a_third_of_the_time():
+    from data_gen.scenes.foliage import GREEN, leaf_colors
+
+    colours = leaf_colors(np.random.default_rng(0), 500, GREEN)
+    assert colours.shape == (500, 3) and (colours > 0).all() and (colours <= 0.9).all()
+    assert len(np.unique(colours[:, 1])) == 500 and (colours[:, 1] > colours[:, 2]).mean() > 0.9, "green, each its own"
+    spec = get_scene("foliage")
+    ups = []
+    for v in range(24):
+        scene = spec.build(np.random.default_rng(derive_seed(0, "foliage", v)))
+        to_world = np.array(scene["sensor"]["to_world"].matrix)
+        origin, forward = to_world[:3, 3], to_world[:3, 2]
+        ups.append(forward[1] > 0)
+        assert {"canopy", "sun", "sky", "ground", "bush0_0"} <= set(scene) and origin[1] > 0
+    assert 0.15 < np.mean(ups) < 0.55, "about a third of the views look up through the canopy"
 
 
 def test_heldout_preset_renders_families_no_shipped_network_learnt():

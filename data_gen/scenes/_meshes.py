@@ -1,4 +1,4 @@
-"""Triangle meshes built in numpy (no asset files): a generic constructor, thin rods, a bumpy height field.
+"""Triangle meshes built in numpy (no asset files): a generic constructor, thin rods, leaves, a bumpy height field.
 
 Each returns a ``mitsuba.Mesh``, which ``mitsuba.load_dict`` accepts as a scene child.
 """
@@ -9,9 +9,18 @@ import numpy as np
 
 
 def mesh_from_arrays(
-    name: str, positions: np.ndarray, faces: np.ndarray, bsdf: dict, normals: np.ndarray | None = None
+    name: str,
+    positions: np.ndarray,
+    faces: np.ndarray,
+    bsdf: dict,
+    normals: np.ndarray | None = None,
+    colors: np.ndarray | None = None,
 ):
-    """A Mitsuba mesh from ``(V, 3)`` positions, ``(F, 3)`` vertex indices and optional ``(V, 3)`` normals."""
+    """A Mitsuba mesh from ``(V, 3)`` positions, ``(F, 3)`` vertex indices and optional ``(V, 3)`` normals.
+
+    ``colors`` (``(V, 3)``) become the mesh attribute ``vertex_color``, which a BSDF reads through a
+    ``{"type": "mesh_attribute", "name": "vertex_color"}`` texture (:data:`VERTEX_COLOR`).
+    """
     import mitsuba as mi
 
     props = mi.Properties()
@@ -23,7 +32,12 @@ def mesh_from_arrays(
     if normals is not None:
         params["vertex_normals"] = np.asarray(normals, dtype=np.float32).ravel()
     params.update()
+    if colors is not None:
+        mesh.add_attribute("vertex_color", 3, np.asarray(colors, dtype=np.float32).ravel().tolist())
     return mesh
+
+
+VERTEX_COLOR = {"type": "mesh_attribute", "name": "vertex_color"}
 
 
 def rods_mesh(name: str, starts, ends, radius: float, bsdf: dict, sides: int = 6):
@@ -57,6 +71,54 @@ def rods_mesh(name: str, starts, ends, radius: float, bsdf: dict, sides: int = 6
     one = np.concatenate([side, caps])  # faces of one rod
     faces = (one[None] + 2 * sides * np.arange(len(starts))[:, None, None]).reshape(-1, 3)
     return mesh_from_arrays(name, pos.reshape(-1, 3), faces, bsdf)
+
+
+def leaf_outline(length: float, width: float, teeth: int, points: int = 7) -> np.ndarray:
+    """A leaf's outline in its own plane, ``(2 * points, 2)``: base at (0, 0), tip at (0, ``length``).
+
+    Pointed at both ends (half-width ``width * sin(pi t)^0.7`` at ``t`` along the midrib), its edge
+    notched ``teeth`` times a side (0: smooth); counter-clockwise from the base.
+    """
+    t = np.linspace(0, 1, points + 1)[1:-1]
+    half = width * np.sin(np.pi * t) ** 0.7
+    if teeth:
+        half = half * (1 - 0.25 * (np.sin(np.pi * teeth * t) ** 2))
+    right = np.stack([half, length * t], 1)
+    left = np.stack([-half, length * t], 1)[::-1]
+    return np.concatenate([[[0.0, 0.0]], right, [[0.0, length]], left])
+
+
+def leaves_mesh(
+    name: str, bases, normals, ups, outline: np.ndarray, scales, bsdf: dict, fold: float = 0.3, colors=None
+):
+    """Flat-shaded leaves, one mesh: leaf ``i`` grows from ``bases[i]`` along ``ups[i]``, facing ``normals[i]``.
+
+    Each is ``outline`` (:func:`leaf_outline`) scaled by ``scales[i]``, fanned into triangles about the
+    midpoint of its midrib and folded up along the midrib by ``fold`` (radians) so it is not a flat card;
+    ``colors[i]`` (optional ``(N, 3)``) colours leaf ``i`` (:data:`VERTEX_COLOR`).
+    """
+    bases, normals, ups = (np.asarray(a, dtype=np.float64) for a in (bases, normals, ups))
+    scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), len(bases))
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    up = ups - (ups * n).sum(1, keepdims=True) * n
+    norm = np.linalg.norm(up, axis=1, keepdims=True)
+    if bases.ndim != 2 or bases.shape[1] != 3 or normals.shape != bases.shape or not (norm > 1e-9).all():
+        raise ValueError("leaves_mesh: bases, normals and ups must be (N, 3), each up not along its normal")
+    up /= norm
+    side = np.cross(up, n)
+    x, y = outline[:, 0], outline[:, 1]
+    lift = np.abs(x) * np.tan(fold)  # the two halves rise from the midrib
+    centre = np.array([[0.0, outline[:, 1].max() / 2, 0.0]])
+    local = np.concatenate([centre, np.stack([x, y, lift], 1)])  # (P+1, 3): side, up, normal
+    pos = bases[:, None] + scales[:, None, None] * (
+        local[None, :, :1] * side[:, None] + local[None, :, 1:2] * up[:, None] + local[None, :, 2:] * n[:, None]
+    )
+    ring = np.arange(1, len(outline) + 1)
+    one = np.stack([np.zeros_like(ring), ring, np.roll(ring, -1)], 1)
+    faces = (one[None] + len(local) * np.arange(len(bases))[:, None, None]).reshape(-1, 3)
+    if colors is not None:
+        colors = np.repeat(np.asarray(colors, dtype=np.float64), len(local), axis=0)
+    return mesh_from_arrays(name, pos.reshape(-1, 3), faces, bsdf, colors=colors)
 
 
 def heightfield_mesh(name: str, heights: np.ndarray, size: float, bsdf: dict, to_world=None):
