@@ -37,6 +37,7 @@ NEW = (
     "surfaces",
     "strands",
     "foliage",
+    "shafts",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -268,6 +269,22 @@ def test_foliage_colours_its_leaves_one_by_one_and_looks_up_a_third_of_the_time(
         ups.append(forward[1] > 0)
         assert {"canopy", "sun", "sky", "ground", "bush0_0"} <= set(scene) and origin[1] > 0
     assert 0.15 < np.mean(ups) < 0.55, "about a third of the views look up through the canopy"
+
+
+def test_shafts_camera_stands_in_the_haze_and_the_sun_comes_in_through_the_window():
+    from data_gen.scenes.shafts import GAP, HAZE, D, H, W
+
+    spec = get_scene("shafts")
+    assert spec.medium and spec.reference_algorithm == "volpath_independent"
+    for v in range(8):
+        scene = spec.build(np.random.default_rng(derive_seed(0, "shafts", v)))
+        assert scene["sensor"]["medium"] == HAZE == scene["air"]["interior"] and scene["haze"]["type"] == "homogeneous"
+        x, y, z = np.array(scene["sensor"]["to_world"].matrix)[:3, 3]
+        assert abs(x) < W - GAP and GAP < y < H - GAP and abs(z) < D - GAP, "the camera is inside the hazy air"
+        sun = np.array(scene["sun"]["direction"])
+        assert sun[0] < 0 and sun[1] < 0, "the sun shines down into the room through the wall x = +W"
+        hole = [scene[k]["to_world"] for k in ("east_below", "east_above", "east_left", "east_right")]
+        assert all(np.isclose(np.array(m.matrix)[0, 3], W) for m in hole), "the window is in the east wall"
 
 
 def test_heldout_preset_renders_families_no_shipped_network_learnt():

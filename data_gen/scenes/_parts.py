@@ -128,6 +128,17 @@ def wall(to_world, bsdf: dict) -> dict:
     return rectangle(to_world, bsdf)
 
 
+def wall_x(x: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict) -> dict:
+    """A rectangle in the plane x = const spanning [z0, z1] x [y0, y1]: a room's side wall, or a piece of one."""
+    return rectangle(
+        _t()
+        .translate([x, (y0 + y1) / 2, (z0 + z1) / 2])
+        .rotate([0, 1, 0], -90)
+        .scale([(z1 - z0) / 2, (y1 - y0) / 2, 1]),
+        bsdf,
+    )
+
+
 def transform():
     """An identity ``ScalarTransform4f`` to chain translate/rotate/scale on."""
     return _t()

@@ -12,21 +12,20 @@ import numpy as np
 
 from data_gen.scenes import SceneSpec, register_scene
 from data_gen.scenes._exposure import exposure, scale_emitters
-from data_gen.scenes._parts import PATH_FAMILY, area_light, camera, diffuse, jitter, random_color, rectangle, transform
+from data_gen.scenes._parts import (
+    PATH_FAMILY,
+    area_light,
+    camera,
+    diffuse,
+    jitter,
+    random_color,
+    rectangle,
+    transform,
+    wall_x,
+)
 
 W, D, H = 2.0, 2.0, 2.5  # room: x in [-W, W], z in [-D, D], y in [0, H]
 MODES = ("ceiling", "partition", "openings")
-
-
-def _wall_x(x: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict) -> dict:
-    """A rectangle in the plane x = const spanning [z0, z1] x [y0, y1]."""
-    return rectangle(
-        transform()
-        .translate([x, (y0 + y1) / 2, (z0 + z1) / 2])
-        .rotate([0, 1, 0], -90)
-        .scale([(z1 - z0) / 2, (y1 - y0) / 2, 1]),
-        bsdf,
-    )
 
 
 def _lighting(rng: np.random.Generator, mode: str, wall: dict) -> dict:
@@ -42,7 +41,7 @@ def _lighting(rng: np.random.Generator, mode: str, wall: dict) -> dict:
                 bsdf=diffuse([0.2, 0.2, 0.2]),
                 emitter=area_light(colour * 1.2 / size**2),
             ),
-            "east": _wall_x(W, -D, D, 0, H, wall),
+            "east": wall_x(W, -D, D, 0, H, wall),
         }
     if mode == "partition":  # a panel behind a low wall near the back, facing the back wall
         z, height = -D + rng.uniform(0.4, 0.7), rng.uniform(1.0, 1.6)
@@ -55,7 +54,7 @@ def _lighting(rng: np.random.Generator, mode: str, wall: dict) -> dict:
                 emitter=area_light(colour * 1.2 / size**2),
             ),
             "partition": rectangle(t().translate([0, height / 2, z + 0.15]).scale([W, height / 2, 1]), wall),
-            "east": _wall_x(W, -D, D, 0, H, wall),
+            "east": wall_x(W, -D, D, 0, H, wall),
         }
     # small openings in the east wall, a bright panel outside facing them
     z0, y0 = rng.uniform(-1.5, 0.8), rng.uniform(0.6, 1.6)
@@ -65,10 +64,10 @@ def _lighting(rng: np.random.Generator, mode: str, wall: dict) -> dict:
             t().translate([W + 1.5, 1.2, (z0 + z1) / 2]).rotate([0, 1, 0], -90).scale([1.5, 1.2, 1]),
             emitter=area_light(colour * 20.0),
         ),
-        "east_below": _wall_x(W, -D, D, 0, y0, wall),
-        "east_above": _wall_x(W, -D, D, y1, H, wall),
-        "east_left": _wall_x(W, -D, z0, y0, y1, wall),
-        "east_right": _wall_x(W, z1, D, y0, y1, wall),
+        "east_below": wall_x(W, -D, D, 0, y0, wall),
+        "east_above": wall_x(W, -D, D, y1, H, wall),
+        "east_left": wall_x(W, -D, z0, y0, y1, wall),
+        "east_right": wall_x(W, z1, D, y0, y1, wall),
     }
 
 
@@ -88,7 +87,7 @@ def build(rng: np.random.Generator) -> dict:
         "ceiling": rectangle(t().translate([0, H, 0]).rotate([1, 0, 0], 90).scale([W, D, 1]), wall),
         "back": rectangle(t().translate([0, H / 2, -D]).scale([W, H / 2, 1]), wall),
         "front": rectangle(t().translate([0, H / 2, D]).scale([W, H / 2, 1]), wall),
-        "west": _wall_x(-W, -D, D, 0, H, diffuse(random_color(rng, 0.2, 0.8))),
+        "west": wall_x(-W, -D, D, 0, H, diffuse(random_color(rng, 0.2, 0.8))),
         "table": {
             "type": "cube",
             "to_world": t()

@@ -9,18 +9,19 @@ from __future__ import annotations
 import numpy as np
 
 from data_gen.scenes import SceneSpec, register_scene
-from data_gen.scenes._parts import PATH_FAMILY, area_light, camera, diffuse, jitter, random_color, rectangle, transform
+from data_gen.scenes._parts import (
+    PATH_FAMILY,
+    area_light,
+    camera,
+    diffuse,
+    jitter,
+    random_color,
+    rectangle,
+    transform,
+    wall_x,
+)
 
 W, H = 2.0, 2.5  # half width of the square room, height
-
-
-def _wall_x(x: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict) -> dict:
-    """A rectangle in the plane x = const spanning [z0, z1] x [y0, y1]."""
-    t = transform()
-    return rectangle(
-        t.translate([x, (y0 + y1) / 2, (z0 + z1) / 2]).rotate([0, 1, 0], -90).scale([(z1 - z0) / 2, (y1 - y0) / 2, 1]),
-        bsdf,
-    )
 
 
 def build(rng: np.random.Generator) -> dict:
@@ -40,11 +41,11 @@ def build(rng: np.random.Generator) -> dict:
         "ceiling": rectangle(t().translate([0, H, 0]).rotate([1, 0, 0], 90).scale(W), wall),
         "back": rectangle(t().translate([0, H / 2, -W]).scale([W, H / 2, 1]), wall),
         "front": rectangle(t().translate([0, H / 2, W]).scale([W, H / 2, 1]), wall),
-        "left": _wall_x(-W, -W, W, 0, H, wall),
+        "left": wall_x(-W, -W, W, 0, H, wall),
         # the door wall at x = +W, with an opening [door_z, door_z + door_w] x [0, door_h]
-        "right_a": _wall_x(W, -W, door_z, 0, H, wall),
-        "right_b": _wall_x(W, door_z + door_w, W, 0, H, wall),
-        "lintel": _wall_x(W, door_z, door_z + door_w, door_h, H, wall),
+        "right_a": wall_x(W, -W, door_z, 0, H, wall),
+        "right_b": wall_x(W, door_z + door_w, W, 0, H, wall),
+        "lintel": wall_x(W, door_z, door_z + door_w, door_h, H, wall),
         # the door leaf, hinged at door_z and swung outwards by `angle`
         "door": rectangle(
             t()
