@@ -139,6 +139,22 @@ def wall_x(x: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict) -> 
     )
 
 
+def room(rng: np.random.Generator, half_width: float, half_depth: float, height: float, wall: dict) -> dict:
+    """A room's floor (a random colour), ceiling, back and front walls (``wall``) and west wall (a random colour).
+
+    The room spans x in [-half_width, half_width], z in [-half_depth, half_depth], y in [0, height]; the east
+    wall (x = +half_width) is left to the scene, which cuts its openings in it.
+    """
+    w, d, h = half_width, half_depth, height
+    return {
+        "floor": rectangle(_t().rotate([1, 0, 0], -90).scale([w, d, 1]), diffuse(random_color(rng, 0.2, 0.6))),
+        "ceiling": rectangle(_t().translate([0, h, 0]).rotate([1, 0, 0], 90).scale([w, d, 1]), wall),
+        "back": rectangle(_t().translate([0, h / 2, -d]).scale([w, h / 2, 1]), wall),
+        "front": rectangle(_t().translate([0, h / 2, d]).scale([w, h / 2, 1]), wall),
+        "west": wall_x(-w, -d, d, 0, h, diffuse(random_color(rng, 0.2, 0.8))),
+    }
+
+
 def transform():
     """An identity ``ScalarTransform4f`` to chain translate/rotate/scale on."""
     return _t()

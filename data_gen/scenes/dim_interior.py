@@ -20,6 +20,7 @@ from data_gen.scenes._parts import (
     jitter,
     random_color,
     rectangle,
+    room,
     transform,
     wall_x,
 )
@@ -83,11 +84,7 @@ def build(rng: np.random.Generator) -> dict:
             jitter(rng, [1.0, 0.9, -1.0], [0.4, 0.3, 0.4]),
             rng.uniform(60, 75),
         ),
-        "floor": rectangle(t().rotate([1, 0, 0], -90).scale([W, D, 1]), diffuse(random_color(rng, 0.2, 0.6))),
-        "ceiling": rectangle(t().translate([0, H, 0]).rotate([1, 0, 0], 90).scale([W, D, 1]), wall),
-        "back": rectangle(t().translate([0, H / 2, -D]).scale([W, H / 2, 1]), wall),
-        "front": rectangle(t().translate([0, H / 2, D]).scale([W, H / 2, 1]), wall),
-        "west": wall_x(-W, -D, D, 0, H, diffuse(random_color(rng, 0.2, 0.8))),
+        **room(rng, W, D, H, wall),
         "table": {
             "type": "cube",
             "to_world": t()

@@ -20,9 +20,8 @@ from data_gen.scenes._parts import (
     camera,
     diffuse,
     jitter,
-    random_color,
-    rectangle,
     rgb,
+    room,
     transform,
     wall_x,
 )
@@ -77,11 +76,7 @@ def build(rng: np.random.Generator) -> dict:
             "bsdf": {"type": "null"},
             "interior": HAZE,
         },
-        "floor": rectangle(t().rotate([1, 0, 0], -90).scale([W, D, 1]), diffuse(random_color(rng, 0.2, 0.6))),
-        "ceiling": rectangle(t().translate([0, H, 0]).rotate([1, 0, 0], 90).scale([W, D, 1]), wall),
-        "back": rectangle(t().translate([0, H / 2, -D]).scale([W, H / 2, 1]), wall),
-        "front": rectangle(t().translate([0, H / 2, D]).scale([W, H / 2, 1]), wall),
-        "west": wall_x(-W, -D, D, 0, H, diffuse(random_color(rng, 0.2, 0.8))),
+        **room(rng, W, D, H, wall),
         **window(rng, wall),
         "sun": {
             "type": "directional",
