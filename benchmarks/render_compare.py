@@ -7,7 +7,8 @@
         [--stop-methods peer,learned,two-buffer,sure,sure-twin,adaptive-sure,adaptive-sure-twin]
         [--skip equal_time,stop,half_cost] [--quick]
 
-Scenes: the eight data_gen families (``loop_scene``; the training scenes) and the three Cornell boxes of
+Scenes: the eight data_gen families (``loop_scene``; the training scenes), the families of data_gen's ``heldout``
+preset (``loop_scene``; no shipped scorer learnt them, nothing is tuned on them) and the three Cornell boxes of
 ``--scene-dir`` (``cbox/*.xml`` loaded with ``mi.load_file(path, res=...)``, max depth 8 / 12 / 12). References:
 for the boxes ``--renders-dir``'s 16384-spp ``reference.exr`` where its size matches, else ``--reference-spp``
 renders (cached under ``<out>/references``). Sections, written to ``<out>/render_compare.md`` (+ CSVs, a PNG,
@@ -66,11 +67,19 @@ CBOX = {
     "cbox_indirect": ("cbox-indirect.xml", 12),
     "cbox_glass": ("cbox-glass.xml", 12),
 }
+HELDOUT_PRESET = REPO / "data_gen" / "configs" / "preset" / "heldout.yaml"
 # A loop's k-th render call uses seed + k: runs' seeds lie this far apart so that no two runs share samples.
 SEED_SPACING = 10_000
 PEER_GRID = (0.2, 0.1, 0.05, 0.025, 0.0125)  # equal time: thresholds tried on the families
 DEFAULT_STOP_METHODS = ("peer", "learned", "two-buffer")  # two-buffer: only with --twin-scorer
 LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read from its signature in main
+
+
+def heldout_families() -> tuple[str, ...]:
+    """The families of data_gen's ``heldout`` preset: no shipped scorer learnt them (measured, never tuned on)."""
+    from omegaconf import OmegaConf
+
+    return tuple(OmegaConf.load(HELDOUT_PRESET).scenes)
 
 
 def fail(message: str) -> None:
@@ -346,9 +355,10 @@ def parse(argv):
         args.seeds, args.curve_seeds, args.resolution, args.budget = 2, 1, 32, 0.3
         args.reference_spp, args.stop_max_spp, args.half_repeats = 256, 64, 2
     args.scenes = args.scenes.split(",")
-    unknown = [s for s in args.scenes if s not in FAMILIES and s not in CBOX]
+    known = (*FAMILIES, *heldout_families(), *CBOX)
+    unknown = [s for s in args.scenes if s not in known]
     if unknown:
-        fail(f"unknown scene(s) {', '.join(unknown)}; choose from {', '.join((*FAMILIES, *CBOX))}")
+        fail(f"unknown scene(s) {', '.join(unknown)}; choose from {', '.join(known)}")
     if min(args.seeds, args.stop_seeds or 1, args.curve_seeds, args.tuning_seeds) < 1:
         fail("--seeds, --stop-seeds, --curve-seeds and --tuning-seeds must be >= 1")
     if args.budget <= 0 or args.resolution < 16 or args.stop_max_spp < 2 * args.spp_per_step:
@@ -428,7 +438,7 @@ def header(args, argv, scenes, scorers, variant, load_start, t_start) -> str:
         else "unknown CPU"
     )
     train = ", ".join(s for s in args.scenes if s in FAMILIES) or "none"
-    held = ", ".join(s for s in args.scenes if s in CBOX) or "none"
+    held = ", ".join(s for s in args.scenes if s not in FAMILIES) or "none"
     return (
         f"# Render loops against the variance-based peer\n\n`python benchmarks/render_compare.py "
         f"{' '.join(sys.argv[1:] if argv is None else argv)}`\n\n"

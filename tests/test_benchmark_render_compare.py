@@ -132,6 +132,25 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
     assert len(runs["equal_time"]) == 2 * 2 * 5 and set(runs["stop_thresholds"]) == {"0.9", "0.95", "0.98"}
     assert (out / "render_compare.png").stat().st_size > 10_000
     assert "No --twin-scorer" in table
+    held = "Over the held-out scenes alone (cbox_official;"
+    assert (held in table) == ("cbox_official" in scenes), "a scene no scorer learnt gets a summary of its own"
+
+
+def test_held_out_scenes_are_the_heldout_presets_and_get_a_summary_of_their_own():
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from render_compare import heldout_families
+    from render_compare_stop import held_out_summary
+
+    assert {"strands", "foliage", "shafts"} <= set(heldout_families())
+
+    def row(scene, on):
+        return {"scene": scene, "target": 0.9, "method": "learned", "true SSIM": 0.9, "spp": 64.0,
+                "uniform needs": "64", "reachable": True, "on target": on, "reached": on}  # fmt: skip
+
+    rows = [row("cornell", "3/3"), row("foliage", "1/3"), row("shafts", "2/3")]
+    text = "\n".join(held_out_summary(rows, 512))
+    assert "(foliage, shafts; nothing was tuned on them)" in text and "3/6 (50 %)" in text
+    assert held_out_summary(rows[:1], 512) == [] and held_out_summary(rows[1:], 512) == [], "all or none held out"
 
 
 def test_overlap_adds_the_blended_map_to_the_equal_time_methods(tmp_path):
