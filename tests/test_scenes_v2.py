@@ -250,8 +250,10 @@ def test_leaves_become_one_folded_coloured_mesh():
         and np.array(mi.traverse(folded)["vertex_positions"]).reshape(-1, 3)[:, 1].max() > 0
     )
     assert flat.has_attribute("vertex_color") and not folded.has_attribute("vertex_color")
-    with pytest.raises(ValueError, match="not along its normal"):
+    with pytest.raises(ValueError, match="must not lie along its normal"):
         leaves_mesh("b", bases[:1], normals[:1], normals[:1], outline, 1.0, bsdf)
+    with pytest.raises(ValueError, match="of one N"):
+        leaves_mesh("b", bases, normals[:1], ups, outline, 1.0, bsdf)
 
 
 def test_foliage_colours_its_leaves_one_by_one_and_looks_up_a_third_of_the_time():

@@ -98,12 +98,14 @@ def leaves_mesh(
     ``colors[i]`` (optional ``(N, 3)``) colours leaf ``i`` (:data:`VERTEX_COLOR`).
     """
     bases, normals, ups = (np.asarray(a, dtype=np.float64) for a in (bases, normals, ups))
+    if bases.ndim != 2 or bases.shape[1] != 3 or normals.shape != bases.shape or ups.shape != bases.shape:
+        raise ValueError("leaves_mesh: bases, normals and ups must be (N, 3) arrays of one N")
     scales = np.broadcast_to(np.asarray(scales, dtype=np.float64), len(bases))
     n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
     up = ups - (ups * n).sum(1, keepdims=True) * n
     norm = np.linalg.norm(up, axis=1, keepdims=True)
-    if bases.ndim != 2 or bases.shape[1] != 3 or normals.shape != bases.shape or not (norm > 1e-9).all():
-        raise ValueError("leaves_mesh: bases, normals and ups must be (N, 3), each up not along its normal")
+    if not (norm > 1e-9).all():
+        raise ValueError("leaves_mesh: each leaf's up must not lie along its normal")
     up /= norm
     side = np.cross(up, n)
     x, y = outline[:, 0], outline[:, 1]
