@@ -31,13 +31,27 @@ def variants_of(records: list[Record]) -> dict[str, Record]:
     return out
 
 
+def without_null_surfaces(scene: dict) -> dict:
+    """``scene`` without its null-BSDF shapes (the boundaries of participating media) and its sensor's medium.
+
+    Such a boundary is invisible in the render, where its medium shows; Mitsuba's ``aov`` integrator stops at it
+    and reads an albedo of 0, which would black out a fog block and, where the camera stands in a medium (the
+    ``shafts`` family), the whole pass. Without them the pass shows the surfaces behind, as the render does
+    through a thin haze (the integrator ignores media).
+    """
+    out = {k: v for k, v in scene.items() if not (isinstance(v, dict) and v.get("bsdf") == {"type": "null"})}
+    out["sensor"] = {k: v for k, v in scene["sensor"].items() if k != "medium"}
+    return out
+
+
 def albedo_scene(rec: Record, seed: int, spp: int = ALBEDO_SPP) -> dict:
-    """The Mitsuba scene of ``rec``'s variant (dataset ``seed``) with the albedo ``aov`` integrator."""
+    """The Mitsuba scene of ``rec``'s variant (dataset ``seed``) with the albedo ``aov`` integrator, seen through
+    its media (:func:`without_null_surfaces`)."""
     spec = get_scene(rec.scene)
     vseed = derive_seed(seed, rec.scene, rec.variant)
     job = Job(rec.scene, rec.variant, vseed, spec.reference_algorithm, (rec.width, rec.height), spec.max_depth, ())
     task = ImageTask("albedo", "albedo", spp, 0, ALBEDO_FILE, rec.reference)
-    scene = scene_dict(job, task)
+    scene = without_null_surfaces(scene_dict(job, task))
     scene["integrator"] = {"type": "aov", "aovs": "albedo:albedo"}
     return scene
 

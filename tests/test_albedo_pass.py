@@ -189,3 +189,34 @@ def test_the_albedo_pass_of_a_scene_file_is_its_reflectance(tmp_path):
     for args in (["--scene-file", str(tmp_path / "bad.xml"), "--out", "x.exr"], ["--scene-file", "wall.xml"]):
         proc = run_albedo_pass(*args)
         assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_the_albedo_pass_sees_through_the_boundaries_of_media():
+    """A null-BSDF boundary is invisible in the render; the pass shows what lies behind it, even from inside."""
+    mi = pytest.importorskip("mitsuba")
+    from data_gen.albedo_pass import albedo_scene, without_null_surfaces
+    from nriqa.io.manifest import Record
+
+    if mi.variant() is None:
+        mi.set_variant("scalar_rgb")
+    scene = {
+        "type": "scene",
+        "sensor": {"type": "perspective", "medium": {"type": "ref", "id": "fog"}},
+        "fog": {"type": "homogeneous"},
+        "air": {"type": "cube", "bsdf": {"type": "null"}, "interior": {"type": "ref", "id": "fog"}},
+        "wall": {"type": "rectangle", "bsdf": {"type": "diffuse"}},
+    }
+    seen = without_null_surfaces(scene)
+    assert (
+        set(seen) == {"type", "sensor", "fog", "wall"}
+        and "medium" not in seen["sensor"]
+        and "medium" in scene["sensor"]
+    )
+    ref = "shafts/v000/reference.exr"
+    rec = Record(
+        "shafts/v000/x", "shafts", 0, "volpath_independent", "test", 4, 1, "x.exr", ref, 16, 16, 0.0, "scalar_rgb"
+    )
+    built = albedo_scene(rec, seed=1, spp=4)
+    assert "air" not in built and "medium" not in built["sensor"] and built["integrator"]["type"] == "aov"
+    image = np.array(mi.render(mi.load_dict(built), seed=0))
+    assert image.max() > 0.05, "from inside the haze the pass shows the room's walls"
