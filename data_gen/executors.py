@@ -75,8 +75,19 @@ def run_local(out: Path, jobs: list[Job], backend: str, workers: int, on_done: O
         collect(futures, on_done)
 
 
+def job_failed(job: Job, exc: BaseException) -> ExecutorError:
+    """One line for a job that raised inside its worker (a scene that does not build or load, an error of
+    Mitsuba's): the job, the error's first line, and that a rerun resumes."""
+    first = next((line.strip() for line in str(exc).splitlines() if line.strip()), "")
+    return ExecutorError(
+        f"rendering {job.scene} v{job.variant:03d} {job.algorithm} failed: {type(exc).__name__}"
+        f"{': ' + first if first else ''}; finished images are kept, so rerun the same command to resume"
+    )
+
+
 def collect(futures: Mapping[cf.Future, Job], on_done: OnDone) -> None:
-    """Report each job as it finishes; a worker that died takes the pool with it: one line naming a job it held."""
+    """Report each job as it finishes; a worker that died takes the pool with it: one line naming a job it held;
+    a job that raised: one line naming it (:func:`job_failed`)."""
     for fut in cf.as_completed(futures):
         try:
             result = fut.result()
@@ -87,6 +98,10 @@ def collect(futures: Mapping[cf.Future, Job], on_done: OnDone) -> None:
                 f"{job.scene} v{job.variant:03d} {job.algorithm} or a job beside it in flight; finished images are "
                 "kept, so rerun the same command to resume; if it dies again there, try backend=scalar_rgb or jobs=1"
             ) from None
+        except NriqaError:
+            raise  # already one line for the user
+        except Exception as exc:
+            raise job_failed(futures[fut], exc) from None
         on_done(futures[fut], *result)
 
 
@@ -197,7 +212,13 @@ def run_dask(
     # Leaving early (an error, Ctrl-C) releases the futures: the scheduler drops the jobs not started.
     try:
         for fut in distributed.as_completed(futures):
-            on_done(futures[fut], *fut.result())
+            try:
+                result = fut.result()
+            except (distributed.KilledWorker, NriqaError):
+                raise
+            except Exception as exc:
+                raise job_failed(futures[fut], exc) from None
+            on_done(futures[fut], *result)
     except distributed.KilledWorker as exc:
         raise ExecutorError(
             f"Dask workers kept dying on a job ({exc}); finished images are kept, rerun to continue"

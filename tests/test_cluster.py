@@ -147,6 +147,22 @@ def test_workers_that_keep_dying_stop_the_run_with_one_line(tmp_path):
     assert "workers kept dying" in message and "rerun to continue" in message and "\n" not in message
 
 
+def fails(*args) -> None:
+    """A task that raises, as a scene Mitsuba cannot load would."""
+    raise RuntimeError("[parser.cpp:1718] failed to instantiate bsdf")
+
+
+def test_a_job_that_raises_on_a_worker_is_one_line_naming_it(tmp_path):
+    job = plan_dataset(["cornell"], 1, **TINY)[0]
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            with pytest.raises(executors.ExecutorError) as info:
+                executors.run_dask(client, tmp_path, [job], "scalar_rgb", 1, False, print, task=fails)
+    message = str(info.value)
+    assert message.startswith(f"rendering cornell v000 {job.algorithm} failed: RuntimeError: [parser.cpp:1718]")
+    assert "rerun the same command to resume" in message and "\n" not in message
+
+
 def test_unreachable_scheduler_is_one_line(tmp_path):
     proc = run_data_gen(
         "preset=tiny",

@@ -196,6 +196,33 @@ def test_a_local_worker_that_dies_stops_the_run_with_one_line():
     assert "\n" not in message and not done
 
 
+def _raise_in_worker(message: str, user_facing: bool = False):
+    from data_gen.executors import ExecutorError
+
+    raise (ExecutorError if user_facing else RuntimeError)(message)
+
+
+def test_a_job_that_raises_in_its_worker_stops_the_run_with_one_line():
+    """A scene that fails to load in Mitsuba (here: any exception of a job) is one line naming the job."""
+    import concurrent.futures as cf
+
+    from data_gen.executors import ExecutorError, collect
+
+    job = plan_dataset(["cornell"], 1, resolution=(32, 32), ladder_top=16)[0]
+    done = []
+    with cf.ProcessPoolExecutor(1) as pool:
+        futures = {pool.submit(_raise_in_worker, "[parser.cpp:1718] failed to instantiate bsdf\nmore detail"): job}
+        with pytest.raises(ExecutorError) as info:
+            collect(futures, lambda *a: done.append(a))
+    message = str(info.value)
+    assert message.startswith(f"rendering cornell v000 {job.algorithm} failed: RuntimeError: [parser.cpp:1718]")
+    assert "rerun the same command to resume" in message and "\n" not in message and not done
+    with cf.ProcessPoolExecutor(1) as pool:
+        futures = {pool.submit(_raise_in_worker, "backend llvm_ad_rgb unusable", True): job}
+        with pytest.raises(ExecutorError, match="^backend llvm_ad_rgb unusable$"):
+            collect(futures, lambda *a: done.append(a))  # already one line for the user: kept as it is
+
+
 def test_sanitize_counts_and_zeroes_nonfinite_pixels():
     img = np.ones((4, 5, 3), dtype=np.float32)
     img[0, 0, 0] = np.nan
