@@ -139,6 +139,20 @@ def wall_x(x: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict) -> 
     )
 
 
+def wall_x_with_opening(
+    x: float, half_depth: float, height: float, z0: float, z1: float, y0: float, y1: float, bsdf: dict
+) -> dict:
+    """The wall x = const of a room (z in [-half_depth, half_depth], y in [0, height]) with an opening
+    [z0, z1] x [y0, y1]: four rectangles, ``east_below``, ``east_above``, ``east_left``, ``east_right``."""
+    d, h = half_depth, height
+    return {
+        "east_below": wall_x(x, -d, d, 0, y0, bsdf),
+        "east_above": wall_x(x, -d, d, y1, h, bsdf),
+        "east_left": wall_x(x, -d, z0, y0, y1, bsdf),
+        "east_right": wall_x(x, z1, d, y0, y1, bsdf),
+    }
+
+
 def room(rng: np.random.Generator, half_width: float, half_depth: float, height: float, wall: dict) -> dict:
     """A room's floor (a random colour), ceiling, back and front walls (``wall``) and west wall (a random colour).
 

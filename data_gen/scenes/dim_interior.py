@@ -23,6 +23,7 @@ from data_gen.scenes._parts import (
     room,
     transform,
     wall_x,
+    wall_x_with_opening,
 )
 
 W, D, H = 2.0, 2.0, 2.5  # room: x in [-W, W], z in [-D, D], y in [0, H]
@@ -65,10 +66,7 @@ def _lighting(rng: np.random.Generator, mode: str, wall: dict) -> dict:
             t().translate([W + 1.5, 1.2, (z0 + z1) / 2]).rotate([0, 1, 0], -90).scale([1.5, 1.2, 1]),
             emitter=area_light(colour * 20.0),
         ),
-        "east_below": wall_x(W, -D, D, 0, y0, wall),
-        "east_above": wall_x(W, -D, D, y1, H, wall),
-        "east_left": wall_x(W, -D, z0, y0, y1, wall),
-        "east_right": wall_x(W, z1, D, y0, y1, wall),
+        **wall_x_with_opening(W, D, H, z0, z1, y0, y1, wall),
     }
 
 

@@ -23,7 +23,7 @@ from data_gen.scenes._parts import (
     rgb,
     room,
     transform,
-    wall_x,
+    wall_x_with_opening,
 )
 
 W, D, H = 2.0, 2.0, 2.5  # room: x in [-W, W], z in [-D, D], y in [0, H]; the window in the wall x = +W
@@ -35,12 +35,7 @@ def window(rng: np.random.Generator, wall: dict) -> dict:
     """The wall x = +W with one window, and its mullions (rods just outside, so none stands in the haze)."""
     z0, y0 = rng.uniform(-1.6, 0.2), rng.uniform(0.7, 1.2)
     z1, y1 = z0 + rng.uniform(0.6, 1.4), min(y0 + rng.uniform(0.6, 1.1), H - 0.1)
-    parts = {
-        "east_below": wall_x(W, -D, D, 0, y0, wall),
-        "east_above": wall_x(W, -D, D, y1, H, wall),
-        "east_left": wall_x(W, -D, z0, y0, y1, wall),
-        "east_right": wall_x(W, z1, D, y0, y1, wall),
-    }
+    parts = wall_x_with_opening(W, D, H, z0, z1, y0, y1, wall)
     bars = int(rng.integers(1, 4))
     zs = z0 + (z1 - z0) * np.arange(1, bars + 1) / (bars + 1)
     starts = [[W + 0.04, y0, z] for z in zs] + [[W + 0.04, (y0 + y1) / 2, z0]]
