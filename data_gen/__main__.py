@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
@@ -12,7 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from data_gen.executors import EXECUTORS, ExecutorError, local_threads, log_progress, render_dask, run_local
 from data_gen.plan import Job, PlanError, plan_dataset
-from data_gen.render import load_record
+from data_gen.render import load_record, record_path
 from nriqa.io.atomic import sweep_partials
 from nriqa.io.manifest import write_manifest
 from nriqa.render.backend import select_backend
@@ -34,6 +35,26 @@ def check_writable(out: Path) -> None:
         probe.unlink()
     except OSError as exc:
         fail(f"output dir {out} is not writable ({exc.strerror}); choose another with out=DIR")
+
+
+def check_pixel_filter(out: Path, jobs: list[Job]) -> None:
+    """Refuse to render over images of another pixel filter: they would all be rendered again."""
+    for job in jobs:
+        for task in job.tasks:
+            rec = load_record(out, task, job.pixel_filter)
+            if rec is not None:
+                return
+            raw = record_path(out, task)
+            if raw.is_file():
+                try:
+                    found = json.loads(raw.read_text(encoding="utf-8")).get("pixel_filter", "box")
+                except (OSError, ValueError):
+                    continue
+                if found != job.pixel_filter:
+                    fail(
+                        f"{out} holds images rendered with pixel_filter={found}, not {job.pixel_filter}; "
+                        f"pass pixel_filter={found} to resume it, or another out=DIR"
+                    )
 
 
 def render_all(out: Path, jobs: list[Job], backend: str, workers: int, executor: DictConfig) -> None:
@@ -60,6 +81,7 @@ def main(cfg: DictConfig) -> None:
             ladder_top=cfg.ladder_top,
             reference_factor=int(cfg.reference_factor),
             algorithms=None if cfg.algorithms is None else list(cfg.algorithms),
+            pixel_filter=str(cfg.pixel_filter),
         )
     except PlanError as exc:
         fail(str(exc))
@@ -68,10 +90,11 @@ def main(cfg: DictConfig) -> None:
     if cfg.executor.name not in EXECUTORS:
         fail(f"executor.name={cfg.executor.name}: choose one of {', '.join(EXECUTORS)} (executor=local|dask)")
     check_writable(out)
+    check_pixel_filter(out, jobs)
     swept = sweep_partials(out)
     if swept:
         log.info("removed %d partial files left by an interrupted run", swept)
-    pending = [j for j in jobs if any(load_record(out, t) is None for t in j.tasks)]
+    pending = [j for j in jobs if any(load_record(out, t, j.pixel_filter) is None for t in j.tasks)]
     n_images = sum(len(j.tasks) for j in jobs)
     log.info("%s: %d images in %d jobs, %d jobs to do", out, n_images, len(jobs), len(pending))
     start = time.perf_counter()
@@ -89,7 +112,7 @@ def main(cfg: DictConfig) -> None:
         swept = sweep_partials(out)
         if swept:
             log.info("removed %d partial files left by workers that died", swept)
-    records = [load_record(out, t) for j in jobs for t in j.tasks]
+    records = [load_record(out, t, j.pixel_filter) for j in jobs for t in j.tasks]
     missing = [j.scene for j, r in zip([j for j in jobs for _ in j.tasks], records) if r is None]
     if missing:
         fail(f"{len(missing)} images missing after rendering (scenes {sorted(set(missing))}); rerun to finish them")

@@ -4,7 +4,7 @@ Renderers write an albedo pass (the surface colour a ray first meets, before any
 denoisers; it is nearly free of Monte Carlo noise at a few samples, and shows where the image's
 detail is texture and geometry rather than noise. Models with ``data.albedo_pass=true`` take it as
 a second input (:mod:`nriqa.data.images`). Rendered with Mitsuba's ``aov`` integrator into the
-same box-filtered film as the dataset's images, the variant rebuilt from the dataset's seed exactly
+same film (and pixel filter) as the dataset's images, the variant rebuilt from the dataset's seed exactly
 as :mod:`data_gen.plan` builds it. A file that exists is kept, so an interrupted run resumes.
 """
 
@@ -49,7 +49,7 @@ def albedo_scene(rec: Record, seed: int, spp: int = ALBEDO_SPP) -> dict:
     its media (:func:`without_null_surfaces`)."""
     spec = get_scene(rec.scene)
     vseed = derive_seed(seed, rec.scene, rec.variant)
-    job = Job(rec.scene, rec.variant, vseed, spec.reference_algorithm, (rec.width, rec.height), spec.max_depth, ())
+    job = Job(rec.scene, rec.variant, vseed, spec.reference_algorithm, (rec.width, rec.height), spec.max_depth, (), rec.pixel_filter)
     task = ImageTask("albedo", "albedo", spp, 0, ALBEDO_FILE, rec.reference)
     scene = without_null_surfaces(scene_dict(job, task))
     scene["integrator"] = {"type": "aov", "aovs": "albedo:albedo"}

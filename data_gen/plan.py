@@ -17,6 +17,9 @@ from data_gen.scenes import LIMITS_REFERENCE_SPP, get_scene
 from nriqa.errors import NriqaError
 
 MIN_REFERENCE_FACTOR = 16  # thesis ch. 4: the reference needs an order of magnitude more samples
+# Mitsuba's reconstruction filters. ``box`` (the default) keeps each pixel's noise its own; the others
+# spread every sample over neighbouring pixels, as renderers do by default (Mitsuba: gaussian).
+PIXEL_FILTERS = ("box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos")
 
 
 class PlanError(NriqaError):
@@ -53,6 +56,7 @@ class Job:
     resolution: tuple[int, int]
     max_depth: int
     tasks: tuple[ImageTask, ...]
+    pixel_filter: str = "box"
 
     @property
     def cost(self) -> int:
@@ -76,6 +80,7 @@ def plan_dataset(
     reference_factor: int = MIN_REFERENCE_FACTOR,
     algorithms: list[str] | None = None,
     first_variant: int = 0,
+    pixel_filter: str = "box",
 ) -> list[Job]:
     """All jobs of a dataset, variant by variant, longest first within a variant. ``None`` options
     take each scene's own declaration.
@@ -87,6 +92,7 @@ def plan_dataset(
     ``algorithms`` restricts every scene to those of its own algorithms named there. ``first_variant``
     skips the variants below it: ``first_variant=46, variants=48`` plans variants 46 and 47 alone, the
     same images a full run would render for them (a fresh test set beside a training set).
+    ``pixel_filter`` is the film's reconstruction filter (one of ``PIXEL_FILTERS``), the reference's too.
     """
     if variants < 1:
         raise PlanError(f"variants={variants}: need at least 1 variant per scene")
@@ -101,6 +107,8 @@ def plan_dataset(
         )
     if resolution is not None and (len(resolution) != 2 or min(resolution) < 8):
         raise PlanError(f"resolution={list(resolution)}: give [width, height], each >= 8")
+    if pixel_filter not in PIXEL_FILTERS:
+        raise PlanError(f"pixel_filter={pixel_filter}: choose one of {', '.join(PIXEL_FILTERS)}")
     if not scenes:
         raise PlanError("no scenes selected; name at least one, e.g. scenes=[cornell]")
     for name in [*(algorithms or [])]:
@@ -129,7 +137,7 @@ def plan_dataset(
                 ref,
                 ref,
             )
-            jobs.append(Job(name, v, vseed, spec.reference_algorithm, res, spec.max_depth, (ref_task,)))
+            jobs.append(Job(name, v, vseed, spec.reference_algorithm, res, spec.max_depth, (ref_task,), pixel_filter))
             for alg_name in chosen:
                 alg = get_algorithm(alg_name)
                 tasks = []
@@ -140,5 +148,5 @@ def plan_dataset(
                     ids = (f"{stem}_a", f"{stem}_b")
                     for role, own, other in (("test", ids[0], ids[1]), ("twin", ids[1], ids[0])):
                         tasks.append(ImageTask(own, role, spp, derive_seed(seed, own), own + ".exr", ref, other))
-                jobs.append(Job(name, v, vseed, alg_name, res, spec.max_depth, tuple(tasks)))
+                jobs.append(Job(name, v, vseed, alg_name, res, spec.max_depth, tuple(tasks), pixel_filter))
     return sorted(jobs, key=lambda j: (j.variant, -j.cost))

@@ -28,8 +28,9 @@ def record_path(root: Path, task: ImageTask) -> Path:
     return root / (task.path + ".json")
 
 
-def load_record(root: Path, task: ImageTask) -> Record | None:
-    """The finished record of ``task``, or ``None`` if it has not been rendered completely."""
+def load_record(root: Path, task: ImageTask, pixel_filter: str = "box") -> Record | None:
+    """The finished record of ``task``, or ``None`` if it has not been rendered completely (or was
+    rendered through another pixel filter)."""
     rec_path = record_path(root, task)
     if not rec_path.is_file() or not (root / task.path).is_file():
         return None
@@ -39,6 +40,8 @@ def load_record(root: Path, task: ImageTask) -> Record | None:
         return None
     # A record from another plan (other seed, spp or reference) is stale: render again.
     if (rec.seed, rec.spp, rec.role, rec.reference) != (task.seed, task.spp, task.role, task.reference):
+        return None
+    if rec.pixel_filter != pixel_filter:
         return None
     return rec
 
@@ -57,8 +60,9 @@ def scene_dict(job: Job, task: ImageTask) -> dict:
     alg = get_algorithm(job.algorithm)
     scene = spec.build(np.random.default_rng(job.variant_seed))
     width, height = job.resolution
-    # A box filter keeps each pixel's noise independent of its neighbours'.
-    scene["sensor"]["film"] = {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}}
+    # The box filter (the default) keeps each pixel's noise independent of its neighbours'.
+    film = {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": job.pixel_filter}}
+    scene["sensor"]["film"] = film
     scene["sensor"]["sampler"] = alg.sampler_dict(task.spp)
     per_pass = samples_per_pass(task.spp, width * height) if not alg.square_spp else None
     scene["integrator"] = alg.integrator_dict(job.max_depth, per_pass)
@@ -116,6 +120,7 @@ def render_task(root: Path, job: Job, task: ImageTask, backend: str) -> Record:
         backend=backend,
         twin=task.twin,
         nonfinite=nonfinite,
+        pixel_filter=job.pixel_filter,
     )
     write_text_atomic(record_path(root, task), json.dumps(rec.to_dict()) + "\n")
     return rec
@@ -126,7 +131,7 @@ def run_job(root: str, job: Job, backend: str) -> tuple[int, int]:
     root_path = Path(root)
     rendered = skipped = 0
     for task in job.tasks:
-        if load_record(root_path, task) is not None:
+        if load_record(root_path, task, job.pixel_filter) is not None:
             skipped += 1
             continue
         render_task(root_path, job, task, backend)

@@ -92,6 +92,7 @@ def test_square_samplers_take_only_powers_of_four():
         ({"variants": 2, "first_variant": 2}, "0 <= first_variant < variants"),
         ({"first_variant": -1}, "0 <= first_variant < variants"),
         ({"algorithms": ["path_magic"]}, "unknown algorithm"),
+        ({"pixel_filter": "gauss"}, "pixel_filter=gauss: choose one of box, tent, gaussian"),
     ],
 )
 def test_plan_rejects_bad_configuration(kwargs, message):
@@ -380,6 +381,39 @@ def test_stale_record_is_rendered_again(tiny, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "1 jobs to do" in proc.stdout + proc.stderr
     assert json.loads(rec_file.read_text())["spp"] == 256
+
+
+def neighbour_correlation(noisy: np.ndarray, ref: np.ndarray) -> float:
+    """Correlation of the noise (image minus reference, grey) of horizontally adjacent pixels."""
+    noise = (noisy - ref).mean(axis=2)
+    return float(np.corrcoef(noise[:, :-1].ravel(), noise[:, 1:].ravel())[0, 1])
+
+
+def test_a_pixel_filter_spreads_the_noise_and_its_dataset_keeps_to_it(tiny, tmp_path):
+    """``pixel_filter=gaussian``: every record says so, the noise of neighbours correlates (box: it does not),
+    each algorithm still converges to its reference, and a rerun with another filter is refused in one line."""
+    out = tmp_path / "gaussian"
+    args = ("preset=tiny", "scenes=[cornell]", "algorithms=[path_independent]", "jobs=1")
+    proc = run_data_gen(*args, f"out={out}", "pixel_filter=gaussian")
+    assert proc.returncode == 0, proc.stderr
+    records, _ = read_manifest(out)
+    assert {r.pixel_filter for r in records} == {"gaussian"}
+    box, _ = read_manifest(tiny)
+    assert {r.pixel_filter for r in box} == {"box"}
+
+    def top_corr(root, recs):
+        rec = max((r for r in recs if r.scene == "cornell" and r.role == "test"), key=lambda r: r.spp)
+        return neighbour_correlation(read_exr(root / rec.path), read_exr(root / rec.reference))
+
+    assert top_corr(out, records) > 0.3 > abs(top_corr(tiny, box)), (top_corr(out, records), top_corr(tiny, box))
+    assert all(v["converged"] for v in dataset_verdicts(out, records))
+
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*.exr")}
+    proc = run_data_gen(*args, f"out={out}")
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "rendered with pixel_filter=gaussian, not box" in lines[0], proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.exr")} == before
 
 
 @pytest.mark.slow

@@ -54,6 +54,7 @@ class Record:
     backend: str
     twin: str | None = None
     nonfinite: int = 0
+    pixel_filter: str = "box"  # the film's reconstruction filter (data_gen's pixel_filter)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
