@@ -199,6 +199,28 @@ def test_external_manifest_and_evaluation(external, tmp_path):
     assert "| wavelet_sigma | raw |  | 6 |" in table and "| dual_buffer | ssim |  | 0 |" in table
 
 
+def test_square_spp_counts_images_at_the_count_rendered(tmp_path):
+    """--square-spp: asked for 2, 4 and 8 samples, a square sampler rendered 4, 4 and 16: two rungs, not three."""
+    import csv
+
+    root = tmp_path / "renders"
+    _png(root / "room" / "reference.png", 0.8, 0.0, 0)
+    for spp in (2, 4, 8):
+        _png(root / "room" / f"ld - {spp}.png", 0.8, 0.2 / math.sqrt(spp), spp)
+    args = [str(root), "--baselines", "dual_buffer", "--no-figures"]
+    main([*args, "--out", str(tmp_path / "asked")])
+    main([*args, "--out", str(tmp_path / "rendered"), "--square-spp", "l*"])
+
+    def read(name, table):
+        with open(tmp_path / name / table, newline="") as f:
+            return list(csv.DictReader(f))
+
+    assert sorted(int(r["spp"]) for r in read("asked", "images.csv")) == [2, 4, 8]
+    assert sorted(int(r["spp"]) for r in read("rendered", "images.csv")) == [4, 4, 16]
+    assert [int(r["rungs"]) for r in read("asked", "monotone.csv")] == [3]
+    assert [int(r["rungs"]) for r in read("rendered", "monotone.csv")] == [2]
+
+
 def test_learned_scorer_as_predictor(data):
     from nriqa.eval.predictors import ScorerPredictor
     from nriqa.inference.scorer import Scorer

@@ -61,3 +61,28 @@ def test_summary_counts_per_predictor_and_skips_raw_scorers():
     assert s["ladders"] == 2 and s["passing"] == 0
     assert s["largest_drop"] == pytest.approx(0.1) and s["ladders_with_drop"] == 1
     assert s["converged_rungs"] == 2 and s["low_where_converged"] == pytest.approx(0.9) and s["ladders_low"] == 1
+
+
+def test_images_at_one_sample_count_are_one_rung():
+    """Two images rendered at one count (a sampler that rounded) are one rung: their means, no fall between them."""
+    rows = _rows([0.30, 0.26, 0.50], [0.2, 0.18, 0.4])
+    rows = [{**r, "spp": 4 if r["spp"] <= 4 else 16} for r in rows]  # asked 2, 4, 8: rendered 4, 4, 16
+    row = ladder_row(*next(iter(ladders(rows).items())))
+    assert row["rungs"] == 2 and row["largest_drop"] == 0.0 and row["passes"] == "yes"
+
+
+def test_square_spp_is_the_next_power_of_four_and_relabels_only_named_algorithms():
+    from nriqa.eval.sample_counts import count_as_rendered, square_spp
+
+    assert [square_spp(n) for n in (1, 2, 4, 8, 16, 32, 64, 128, 256, 512)] == [1, 4, 4, 16, 16, 64, 64, 256, 256, 1024]
+    with pytest.raises(ValueError, match="at least 1"):
+        square_spp(0)
+    rows = _rows([0.1, 0.2, 0.3], [0.1, 0.2, 0.3], algorithm="path_ldsampler") + _rows([0.1], [0.1])
+    out = count_as_rendered(rows, "*ldsampler")
+    assert sorted((r["algorithm"], r["spp"], r.get("spp_asked")) for r in out) == [
+        ("path", 2, None),
+        ("path_ldsampler", 4, 2),
+        ("path_ldsampler", 4, 4),
+        ("path_ldsampler", 16, 8),
+    ]
+    assert count_as_rendered(rows, "") == rows

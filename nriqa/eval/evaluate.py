@@ -52,6 +52,7 @@ from nriqa.eval.monotone import LADDER_COLUMNS, SUMMARY_COLUMNS, monotonicity
 from nriqa.eval.paired import paired_table, write_paired
 from nriqa.eval.plots import figure_items, plot_maps, plot_scatter
 from nriqa.eval.predictors import build_predictors
+from nriqa.eval.sample_counts import count_as_rendered
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.exr import ImageReadError
 from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE, ExternalError
@@ -303,12 +304,15 @@ def evaluate(
     figures: bool = True,
     display: Display | None = None,
     base: str | None = None,
+    square: str = "",
 ) -> tuple[list[dict], list[dict]]:
     """Run the whole evaluation and write its tables and figures into ``out``; returns ``(comparison, per_scene)``.
 
     ``display``: show linear renders through it (:mod:`nriqa.eval.dataset`); ``None`` or the plain
     tone map load images as prediction does. ``base``: the name of one of ``predictors``; every
-    other is compared with it image by image (``paired.{csv,md}``).
+    other is compared with it image by image (``paired.{csv,md}``). ``square``: comma-separated globs of
+    algorithms whose sampler rounds its count up to a power of four; their images are counted at the count
+    rendered (:mod:`nriqa.eval.sample_counts`).
     """
     names = [p.name for p in predictors]
     if base is not None and base not in names:
@@ -324,6 +328,7 @@ def evaluate(
         raise EvaluationError(f"unknown scene(s) {', '.join(unknown)}; the dataset has: {', '.join(present)}")
     eval_scenes = scenes or present
     rows, pixels, maps = run_predictors(data, predictors, eval_scenes)
+    rows = count_as_rendered(rows, square)
     add_interval_ends(rows, predictors, tonemapped=display is None)
     comparison, per_scene = summarise(rows, pixels, predictors, eval_scenes)
     n_images = len([r for r in rows if r["predictor"] == predictors[0].name])
@@ -393,6 +398,13 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="a predictor's name (e.g. unet_fast): compare every other with it image by image, paired.{csv,md}",
     )
+    parser.add_argument(
+        "--square-spp",
+        default="",
+        metavar="ALGORITHMS",
+        help="comma-separated globs of algorithms whose sampler rounds the count up to a power of four (Mitsuba's "
+        "ldsampler, multijitter): count their images at the count rendered, e.g. 2 and 4 as 4 (default: none)",
+    )
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     parser.add_argument(
         "--threads",
@@ -424,6 +436,7 @@ def main(argv: list[str] | None = None) -> None:
             not args.no_figures,
             display,
             args.base,
+            args.square_spp,
         )
     except (EvaluationError, ExternalError, ManifestError, ImageReadError, CheckpointError) as exc:
         sys.exit(f"error: {exc}")

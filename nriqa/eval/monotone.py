@@ -5,6 +5,9 @@ otherwise: along one *ladder* -- the images of one (scene, variant, algorithm) o
 the predicted mean SSIM should not fall from one rung to the next, and where the true SSIM is
 already high the prediction must be high too, or an early-stopping target is never reached.
 
+A rung is one sample count: images of a ladder rendered at the same count (a sampler that rounds the count
+it is asked for, :mod:`nriqa.eval.sample_counts`) are one rung, its true and predicted scores their means.
+
 Per ladder (SSIM-scale predictors only, from the rows of :func:`nriqa.eval.evaluate.run_predictors`):
 
 * ``largest_drop``: the largest fall of the predicted score from one rung to the next (0 when it
@@ -57,9 +60,28 @@ def ladders(rows: list[dict]) -> dict[tuple, list[dict]]:
     return {k: sorted(v, key=lambda r: r["spp"]) for k, v in sorted(groups.items(), key=lambda kv: str(kv[0]))}
 
 
+def merge_counts(rungs: list[dict]) -> list[dict]:
+    """One rung per sample count (``rungs`` sorted by spp): the mean true and predicted score of its images."""
+    merged: list[dict] = []
+    for r in rungs:
+        if merged and merged[-1]["spp"] == r["spp"]:
+            merged[-1]["_members"].append(r)
+        else:
+            merged.append({"spp": r["spp"], "_members": [r]})
+    return [
+        {
+            "spp": m["spp"],
+            "true": sum(x["true"] for x in m["_members"]) / len(m["_members"]),
+            "predicted": sum(x["predicted"] for x in m["_members"]) / len(m["_members"]),
+        }
+        for m in merged
+    ]
+
+
 def ladder_row(key: tuple, rungs: list[dict]) -> dict:
     """One ladder's figures (see the module docstring); ``rungs`` sorted by spp, predictions on the SSIM scale."""
     predictor, scene, variant, algorithm = key
+    rungs = merge_counts(rungs)
     drop, drop_at = 0.0, ""
     for lo, hi in zip(rungs, rungs[1:]):
         fall = lo["predicted"] - hi["predicted"]
