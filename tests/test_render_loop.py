@@ -340,6 +340,25 @@ def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
         render_adaptive(mi.load_dict(scene), scorer, total_spp=4, tile=16)
 
 
+@pytest.mark.parametrize("rfilter", ["gaussian", "tent"])
+def test_loops_that_render_whole_images_refuse_a_film_that_is_not_box_filtered(scene, scorer, rfilter):
+    """Mitsuba's default filter (a Gaussian, mi.cornell_box()'s too) spreads samples; the scorers read it as converged."""
+    blurred = {
+        **scene,
+        "sensor": {**scene["sensor"], "film": {**scene["sensor"]["film"], "rfilter": {"type": rfilter}}},
+    }
+    match = (
+        r"film filters with a (Gaussian|Tent)Filter.*need a box filter: set scene\['sensor'\]\['film'\]\['rfilter'\]"
+    )
+    with pytest.raises(ValueError, match=match):
+        render_until(blurred, scorer, 0.9, time_budget_s=1, max_spp=8, warmup=False)
+    with pytest.raises(ValueError, match=match):
+        render_until(mi.load_dict(blurred), scorer, 0.9, time_budget_s=1, max_spp=8, warmup=False)
+    with pytest.raises(ValueError, match=match):
+        render_adaptive(blurred, scorer, total_spp=8, warmup=False)
+    render_until(scene, scorer, 0.9, time_budget_s=1, max_spp=8, warmup=False)  # the box-filtered scene runs
+
+
 @pytest.mark.parametrize(
     "bad, match",
     [
