@@ -13,6 +13,7 @@ from nriqa.data.albedo import texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.jitter import apply_jitter, sample_jitter, shift_hsv
 from nriqa.data.patches import TONEMAP, cut_all, item_generator
+from nriqa.data.pixel_filter import apply_pixel_filter
 from nriqa.data.targets import compute_target
 
 MIX = {"tonemap": 1.0, "srgb": 1.0, "gamma22": 1.0, "stops": 2.0, "quantise_p": 0.5}
@@ -35,6 +36,9 @@ def one_by_one(ds, k):
     albedo = ds.draw(k).albedo  # drawn last, applied first (to the linear radiance)
     if albedo is not None:
         members = [m * texture(albedo, ds.patch_size, ds.albedo_lines) for m in members]
+    sigma = ds.draw(k).pixel_sigma  # drawn after the albedo, applied after it (to the radiance)
+    if sigma is not None:
+        members = [apply_pixel_filter(m[None], sigma)[0] for m in members]
     if pair.linear:
         members = [apply_display(m, display, pair.key) for m in members]
     if ds.hsv or ds.geometric:
@@ -57,6 +61,8 @@ def one_by_one(ds, k):
         {"albedo_p": 0.5},
         {"display": MIX, "twins": True, "albedo_p": 0.5},
         {"albedo_p": 0.5, "albedo_lines": 0.5},
+        {"pixel_filter_p": 0.5},
+        {"display": MIX, "twins": True, "albedo_p": 0.5, "pixel_filter_p": 0.5},
     ],
 )
 def test_a_batch_equals_its_items_made_one_by_one(synthetic_dataset, kw):

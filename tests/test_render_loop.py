@@ -342,7 +342,7 @@ def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
 
 @pytest.mark.parametrize("rfilter", ["gaussian", "tent"])
 def test_loops_that_render_whole_images_refuse_a_film_that_is_not_box_filtered(scene, scorer, rfilter):
-    """Mitsuba's default filter (a Gaussian, mi.cornell_box()'s too) spreads samples; the scorers read it as converged."""
+    """Mitsuba's default filter (a Gaussian, mi.cornell_box()'s too) spreads samples: read as converged."""
     blurred = {
         **scene,
         "sensor": {**scene["sensor"], "film": {**scene["sensor"]["film"], "rfilter": {"type": rfilter}}},

@@ -11,6 +11,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
+from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
@@ -67,6 +68,10 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_pass: also feed the model each scene variant's albedo pass (``albedo.exr`` beside the
             reference, ``python -m data_gen.albedo_pass DATA``), stacked after the image (and twin):
             cut, textured and jittered with the image, never displayed.
+        pixel_filter_p: the share of training patches through a renderer's pixel filter, a Gaussian of
+            Mitsuba's form with a standard deviation uniform in ``pixel_filter_sigma`` pixels, noisy image,
+            twin and reference alike, before the display and the target (:mod:`nriqa.data.pixel_filter`);
+            0 (the default) draws none and leaves every other draw as it was.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -94,6 +99,8 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
         albedo_lines: float = 0.0,
+        pixel_filter_p: float = 0.0,
+        pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -102,7 +109,9 @@ class NRIQADataModule(L.LightningDataModule):
         super().__init__()
         check_target(target)
         if device is not None and (num_workers or pin_memory):
-            raise ValueError(f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false")
+            raise ValueError(
+                f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"
+            )
         jitter = dict(jitter or {})
         unknown = set(jitter) - {"hsv", "geometric"}
         if unknown:
@@ -116,6 +125,8 @@ class NRIQADataModule(L.LightningDataModule):
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = bool(albedo_pass)
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
+        pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
+        self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -163,6 +174,8 @@ class NRIQADataModule(L.LightningDataModule):
             albedo_p=self.albedo_p,
             albedo_pass=self.albedo_pass,
             albedo_lines=self.albedo_lines,
+            pixel_filter_p=self.pixel_filter_p,
+            pixel_filter_sigma=self.pixel_filter_sigma,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

@@ -17,6 +17,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
+from nriqa.data.pixel_filter import SIGMA_RANGE, apply_pixel_filter, check_pixel_filter, sample_pixel_filter
 from nriqa.data.images import ImagePair
 from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
 from nriqa.data.targets import check_target, compute_target
@@ -84,9 +85,10 @@ class TrainPatches(Dataset):
     """Random jittered training patches; item ``k`` is ``(input, target)`` drawn from ``(seed, k)``.
 
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
-    ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, each
-    applied to noisy image, twin and reference alike, and the target is computed from the textured,
-    displayed, jittered pair. The texture multiplies the linear radiance, before the display (a
+    ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
+    (with ``pixel_filter_p``) a pixel filter, each applied to noisy image, twin and reference alike, and the
+    target is computed from the textured, filtered, displayed, jittered pair; the texture and the filter act
+    on the radiance, before the display (:mod:`nriqa.data.pixel_filter`). The texture multiplies the linear radiance, before the display (a
     tone-mapped pair: its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
@@ -108,6 +110,8 @@ class TrainPatches(Dataset):
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
         albedo_lines: float = 0.0,
+        pixel_filter_p: float = 0.0,
+        pixel_filter_sigma: tuple[float, float] = SIGMA_RANGE,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
@@ -125,6 +129,7 @@ class TrainPatches(Dataset):
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = albedo_pass
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
+        self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.cdf: Tensor | None = None
 
     def __len__(self) -> int:
@@ -164,7 +169,9 @@ class TrainPatches(Dataset):
         x = int(torch.randint(0, w - self.patch_size + 1, (1,), generator=g))
         display = self.display.sample(g) if self.display is not None else TONEMAP
         jitter = sample_jitter(g, hsv=self.hsv, geometric=self.geometric) if self.hsv or self.geometric else None
-        return Draw(pair, y, x, display, jitter, sample_albedo(g, self.albedo_p))
+        albedo = sample_albedo(g, self.albedo_p)
+        sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn last: the rest as before
+        return Draw(pair, y, x, display, jitter, albedo, sigma)
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
         return self.__getitems__([index])[0]
@@ -183,6 +190,7 @@ class TrainPatches(Dataset):
             for j in range(len(sources[0]))
         ]
         members = albedo_batch(draws, members, self.albedo_lines)
+        members = pixel_filter_batch(draws, members)
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
         members = display_batch(draws, members[:shown]) + members[shown:]
         members = jitter_batch(draws, members)
@@ -202,6 +210,7 @@ class Draw:
     display: Display
     jitter: JitterParams | None
     albedo: int | None = None  # the seed of the patch's albedo texture (nriqa.data.albedo), or none
+    pixel_sigma: float | None = None  # the pixel filter's standard deviation (nriqa.data.pixel_filter), or none
 
 
 def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
@@ -217,6 +226,19 @@ def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -
     out = [m.clone() for m in members]
     for o in out:
         o[rows] = o[rows] * textures
+    return out
+
+
+def pixel_filter_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
+    """Each item of the ``(B, C, P, P)`` member stacks through its draw's pixel filter, the same for every member
+    (the albedo pass too: a renderer filters its passes with the image's film)."""
+    rows = [i for i, d in enumerate(draws) if d.pixel_sigma is not None]
+    if not rows:
+        return members
+    out = [m.clone() for m in members]
+    for i in rows:
+        for o in out:
+            o[i : i + 1] = apply_pixel_filter(o[i : i + 1], draws[i].pixel_sigma)
     return out
 
 
@@ -291,7 +313,9 @@ class EpochSampler(Sampler[int]):
         return self.n
 
     def __iter__(self):
-        rank, world = (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
+        rank, world = (
+            (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
+        )
         start = (self.epoch * world + rank) * self.n
         return iter(range(start, start + self.n))
 
