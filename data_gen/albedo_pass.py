@@ -49,7 +49,16 @@ def albedo_scene(rec: Record, seed: int, spp: int = ALBEDO_SPP) -> dict:
     its media (:func:`without_null_surfaces`)."""
     spec = get_scene(rec.scene)
     vseed = derive_seed(seed, rec.scene, rec.variant)
-    job = Job(rec.scene, rec.variant, vseed, spec.reference_algorithm, (rec.width, rec.height), spec.max_depth, (), rec.pixel_filter)
+    job = Job(
+        rec.scene,
+        rec.variant,
+        vseed,
+        spec.reference_algorithm,
+        (rec.width, rec.height),
+        spec.max_depth,
+        (),
+        rec.pixel_filter,
+    )
     task = ImageTask("albedo", "albedo", spp, 0, ALBEDO_FILE, rec.reference)
     scene = without_null_surfaces(scene_dict(job, task))
     scene["integrator"] = {"type": "aov", "aovs": "albedo:albedo"}

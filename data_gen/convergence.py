@@ -9,6 +9,10 @@ noise must not be guessed from the tested algorithm's. Over blocks of pixels, th
 ``m - reference`` divided by its standard error is a z-score: about N(0, 1) where the algorithm
 converges to the reference, large where it is biased (e.g. particle tracing that never sees a
 glass object). The verdict uses robust summaries of |z| so that fireflies do not decide it.
+
+Through a pixel filter wider than a box (``pixel_filter``, data_gen's option) neighbouring pixels share
+samples, so a block mean varies more than its pixels' variances say; for such images the block variance
+is scaled by how much more the twin difference's block means vary than independent pixels would.
 """
 
 from __future__ import annotations
@@ -65,17 +69,38 @@ def pixel_variance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def convergence(
-    test: np.ndarray, twin: np.ndarray, reference: np.ndarray, reference_variance: np.ndarray, block: int = 4
+    test: np.ndarray,
+    twin: np.ndarray,
+    reference: np.ndarray,
+    reference_variance: np.ndarray,
+    block: int = 4,
+    spread: bool = False,
 ) -> Convergence:
-    """Compare ``(H, W, 3)`` linear images; ``reference_variance`` is the reference's per-pixel ``(H, W)`` variance."""
+    """Compare ``(H, W, 3)`` linear images; ``reference_variance`` is the reference's per-pixel ``(H, W)`` variance.
+
+    ``spread``: the images went through a pixel filter that spreads samples over neighbours (not a box), so
+    pixel noise is correlated; the block variance is scaled by :func:`block_inflation` of the twin difference.
+    """
     a, b, r = _luma(test), _luma(twin), _luma(reference)
     m = (a + b) / 2
     d = _blocks(m - r, block)
     var = (_blocks(((a - b) / 2) ** 2, block) + _blocks(reference_variance, block)) / block**2
+    if spread:
+        var = var * block_inflation((a - b) / 2, block)
     floor = (1e-4 * max(r.mean(), 1e-6)) ** 2
     z = np.abs(d) / np.sqrt(var + floor)
     bias = abs(m.mean() - r.mean()) / max(r.mean(), 1e-6)
     return Convergence(float(np.median(z)), float((z > 4).mean()), float(bias))
+
+
+def block_inflation(noise: np.ndarray, block: int) -> float:
+    """How much more the block means of a zero-mean ``noise`` image vary than its pixels' variances say (>= 1).
+
+    1 for independent pixels; through Mitsuba's Gaussian pixel filter about 2.5 for 4x4 blocks.
+    """
+    independent = float((_blocks(noise**2, block) / block**2).sum())
+    observed = float((_blocks(noise, block) ** 2).sum())
+    return max(1.0, observed / max(independent, 1e-300))
 
 
 def top_rungs(records: list[Record]) -> dict[tuple[str, int, str], Record]:
@@ -117,6 +142,7 @@ def dataset_verdicts(root: str | Path, records: list[Record], every_rung: bool =
             read_exr(root / by_id[rec.twin].path),
             read_exr(root / ref.path),
             ref_vars[(rec.scene, rec.variant)],
+            spread=rec.pixel_filter != "box",
         )
         rows.append(
             {

@@ -16,7 +16,7 @@ pytest.importorskip("mitsuba")
 from conftest import REPO, run_data_gen
 
 from data_gen.algorithms import ALGORITHMS, get_algorithm
-from data_gen.convergence import convergence, dataset_verdicts, pixel_variance, top_rungs
+from data_gen.convergence import block_inflation, convergence, dataset_verdicts, pixel_variance, top_rungs
 from data_gen.plan import MIN_REFERENCE_FACTOR, PlanError, ladder, plan_dataset
 from data_gen.render import sanitize
 from data_gen.scenes import get_scene, list_scenes
@@ -381,6 +381,29 @@ def test_stale_record_is_rendered_again(tiny, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "1 jobs to do" in proc.stdout + proc.stderr
     assert json.loads(rec_file.read_text())["spp"] == 256
+
+
+def test_the_bias_test_allows_for_noise_a_pixel_filter_spreads():
+    """Unbiased images whose noise neighbours share (as through a Gaussian pixel filter): without ``spread``
+    the block z-scores are inflated; with it they are N(0, 1)-like again. Independent noise: inflation ~1."""
+    import torch
+
+    from nriqa.data.pixel_filter import apply_pixel_filter
+
+    rng = np.random.default_rng(0)
+    truth = np.full((128, 128, 3), 0.5)
+
+    def noisy(seed):
+        n = torch.from_numpy(np.random.default_rng(seed).normal(0, 0.05, (1, 3, 128, 128)))
+        return truth + apply_pixel_filter(n, 0.6)[0].permute(1, 2, 0).numpy()
+
+    a, b, ref = noisy(1), noisy(2), noisy(3)
+    ref_var = pixel_variance(noisy(4), noisy(5))
+    plain = convergence(a, b, ref, ref_var)
+    spread = convergence(a, b, ref, ref_var, spread=True)
+    assert plain.median_abs_z > 1.0 and 0.5 < spread.median_abs_z < 0.85, (plain, spread)
+    white = rng.normal(0, 1, (256, 256))
+    assert block_inflation(white, 4) == pytest.approx(1.0, abs=0.1)
 
 
 def neighbour_correlation(noisy: np.ndarray, ref: np.ndarray) -> float:
