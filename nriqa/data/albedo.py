@@ -107,10 +107,7 @@ def sample_albedo(generator: torch.Generator, p: float) -> int | None:
     """
     if p <= 0.0:
         return None
-    u, seed = (
-        torch.rand(1, generator=generator, dtype=torch.float64),
-        torch.randint(0, 2**31 - 1, (1,), generator=generator),
-    )
+    u, seed = torch.rand(1, generator=generator, dtype=torch.float64), torch.randint(0, 2**31 - 1, (1,), generator=generator)
     return int(seed) if float(u) < p else None
 
 

@@ -109,9 +109,7 @@ class NRIQADataModule(L.LightningDataModule):
         super().__init__()
         check_target(target)
         if device is not None and (num_workers or pin_memory):
-            raise ValueError(
-                f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"
-            )
+            raise ValueError(f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false")
         jitter = dict(jitter or {})
         unknown = set(jitter) - {"hsv", "geometric"}
         if unknown:

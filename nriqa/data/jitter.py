@@ -91,9 +91,7 @@ def apply_jitter(img: Tensor, p: JitterParams) -> Tensor:
         for odd ``rot_k``.
     """
     if not isinstance(img, Tensor) or not img.is_floating_point():
-        raise TypeError(
-            f"apply_jitter expects a floating-point torch.Tensor, got {getattr(img, 'dtype', type(img).__name__)}"
-        )
+        raise TypeError(f"apply_jitter expects a floating-point torch.Tensor, got {getattr(img, 'dtype', type(img).__name__)}")
     if img.ndim not in (3, 4) or img.shape[-3] != 3:
         raise ValueError(f"apply_jitter expects (3, H, W) or (B, 3, H, W) RGB, got {tuple(img.shape)}")
     out = img
@@ -152,12 +150,8 @@ def jitter_pair(
     """
     for name, t in (("noisy", noisy), ("ref", ref)):
         if not isinstance(t, Tensor) or t.ndim != 3:
-            raise ValueError(
-                f"jitter_pair: {name} must be a (3, H, W) tensor, got {getattr(t, 'shape', type(t).__name__)}"
-            )
+            raise ValueError(f"jitter_pair: {name} must be a (3, H, W) tensor, got {getattr(t, 'shape', type(t).__name__)}")
     if noisy.shape != ref.shape:
-        raise ValueError(
-            f"jitter_pair: noisy and ref must have the same shape, got {tuple(noisy.shape)} and {tuple(ref.shape)}"
-        )
+        raise ValueError(f"jitter_pair: noisy and ref must have the same shape, got {tuple(noisy.shape)} and {tuple(ref.shape)}")
     params = sample_jitter(generator, hsv=hsv, geometric=geometric)
     return apply_jitter(noisy, params), apply_jitter(ref, params)

@@ -86,10 +86,10 @@ class TrainPatches(Dataset):
 
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
-    (with ``pixel_filter_p``) a pixel filter, each applied to noisy image, twin and reference alike, and the
-    target is computed from the textured, filtered, displayed, jittered pair; the texture and the filter act
-    on the radiance, before the display (:mod:`nriqa.data.pixel_filter`). The texture multiplies the linear radiance, before the display (a
-    tone-mapped pair: its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
+    (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`), each applied to noisy image,
+    twin and reference alike, and the target is computed from the textured, filtered, displayed, jittered
+    pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
+    on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
     the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). Any ``k >= 0`` is valid;
@@ -313,9 +313,7 @@ class EpochSampler(Sampler[int]):
         return self.n
 
     def __iter__(self):
-        rank, world = (
-            (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
-        )
+        rank, world = (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
         start = (self.epoch * world + rank) * self.n
         return iter(range(start, start + self.n))
 
