@@ -21,6 +21,7 @@ least :data:`MIN_CONVERGED_PREDICTION` (issue 15's done-when).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import defaultdict
 
@@ -62,20 +63,12 @@ def ladders(rows: list[dict]) -> dict[tuple, list[dict]]:
 
 def merge_counts(rungs: list[dict]) -> list[dict]:
     """One rung per sample count (``rungs`` sorted by spp): the mean true and predicted score of its images."""
-    merged: list[dict] = []
-    for r in rungs:
-        if merged and merged[-1]["spp"] == r["spp"]:
-            merged[-1]["_members"].append(r)
-        else:
-            merged.append({"spp": r["spp"], "_members": [r]})
-    return [
-        {
-            "spp": m["spp"],
-            "true": sum(x["true"] for x in m["_members"]) / len(m["_members"]),
-            "predicted": sum(x["predicted"] for x in m["_members"]) / len(m["_members"]),
-        }
-        for m in merged
-    ]
+    merged = []
+    for spp, group in itertools.groupby(rungs, key=lambda r: r["spp"]):
+        members = list(group)
+        true = sum(r["true"] for r in members) / len(members)
+        merged.append({"spp": spp, "true": true, "predicted": sum(r["predicted"] for r in members) / len(members)})
+    return merged
 
 
 def ladder_row(key: tuple, rungs: list[dict]) -> dict:
