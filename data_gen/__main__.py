@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -13,7 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from data_gen.executors import EXECUTORS, ExecutorError, local_threads, log_progress, render_dask, run_local
 from data_gen.plan import Job, PlanError, plan_dataset
-from data_gen.render import load_record, record_path
+from data_gen.render import load_record
 from nriqa.io.atomic import sweep_partials
 from nriqa.io.manifest import write_manifest
 from nriqa.render.backend import select_backend
@@ -41,20 +40,15 @@ def check_pixel_filter(out: Path, jobs: list[Job]) -> None:
     """Refuse to render over images of another pixel filter: they would all be rendered again."""
     for job in jobs:
         for task in job.tasks:
-            rec = load_record(out, task, job.pixel_filter)
-            if rec is not None:
-                return
-            raw = record_path(out, task)
-            if raw.is_file():
-                try:
-                    found = json.loads(raw.read_text(encoding="utf-8")).get("pixel_filter", "box")
-                except (OSError, ValueError):
-                    continue
-                if found != job.pixel_filter:
-                    fail(
-                        f"{out} holds images rendered with pixel_filter={found}, not {job.pixel_filter}; "
-                        f"pass pixel_filter={found} to resume it, or another out=DIR"
-                    )
+            rec = load_record(out, task, pixel_filter=None)
+            if rec is None:
+                continue
+            if rec.pixel_filter != job.pixel_filter:
+                fail(
+                    f"{out} holds images rendered with pixel_filter={rec.pixel_filter}, not {job.pixel_filter}; "
+                    f"pass pixel_filter={rec.pixel_filter} to resume it, or another out=DIR"
+                )
+            return
 
 
 def render_all(out: Path, jobs: list[Job], backend: str, workers: int, executor: DictConfig) -> None:

@@ -28,9 +28,9 @@ def record_path(root: Path, task: ImageTask) -> Path:
     return root / (task.path + ".json")
 
 
-def load_record(root: Path, task: ImageTask, pixel_filter: str = "box") -> Record | None:
+def load_record(root: Path, task: ImageTask, pixel_filter: str | None = "box") -> Record | None:
     """The finished record of ``task``, or ``None`` if it has not been rendered completely (or was
-    rendered through another pixel filter)."""
+    rendered through another pixel filter than ``pixel_filter``; ``None``: through any)."""
     rec_path = record_path(root, task)
     if not rec_path.is_file() or not (root / task.path).is_file():
         return None
@@ -41,7 +41,7 @@ def load_record(root: Path, task: ImageTask, pixel_filter: str = "box") -> Recor
     # A record from another plan (other seed, spp or reference) is stale: render again.
     if (rec.seed, rec.spp, rec.role, rec.reference) != (task.seed, task.spp, task.role, task.reference):
         return None
-    if rec.pixel_filter != pixel_filter:
+    if pixel_filter is not None and rec.pixel_filter != pixel_filter:
         return None
     return rec
 
