@@ -158,6 +158,7 @@ def test_cli_bad_files_do_not_stop_the_others(tmp_path, weights):
     assert [r["path"] for r in rows] == good
     for r in rows:
         assert {"path", "score", "height", "width", "seconds", "hdr", "map"} <= r.keys()
+        assert r["pixel_filter"] == "box"  # the weights' card names no filter: box
         assert np.isfinite(r["score"]) and (r["height"], r["width"]) == (24, 30)
         assert r["hdr"] == r["path"].endswith(".exr")
         qmap = read_exr(tmp_path / r["map"])

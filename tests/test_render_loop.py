@@ -27,6 +27,7 @@ from nriqa.render.backend import SCALAR_VARIANT, init_worker  # noqa: E402
 from nriqa.render.clock import Clock as _Clock  # noqa: E402
 from nriqa.render.clock import next_step as _next_step  # noqa: E402
 from nriqa.render.error_model import ErrorModel as _ErrorModel  # noqa: E402
+from nriqa.render.film import check_pixel_filter  # noqa: E402
 from nriqa.render.tiles import expected_gain as _expected_gain  # noqa: E402
 
 SIZE = 32
@@ -340,15 +341,19 @@ def test_render_adaptive_needs_a_budget_and_a_dict(scene, scorer):
         render_adaptive(mi.load_dict(scene), scorer, total_spp=4, tile=16)
 
 
+def _through(scene, rfilter):
+    film = {**scene["sensor"]["film"], "rfilter": {"type": rfilter}}
+    return {**scene, "sensor": {**scene["sensor"], "film": film}}
+
+
 @pytest.mark.parametrize("rfilter", ["gaussian", "tent"])
 def test_loops_that_render_whole_images_refuse_a_film_that_is_not_box_filtered(scene, scorer, rfilter):
     """Mitsuba's default filter (a Gaussian, mi.cornell_box()'s too) spreads samples: read as converged."""
-    blurred = {
-        **scene,
-        "sensor": {**scene["sensor"], "film": {**scene["sensor"]["film"], "rfilter": {"type": rfilter}}},
-    }
+    blurred = _through(scene, rfilter)
     match = (
-        r"film filters with a (Gaussian|Tent)Filter.*need a box filter: set scene\['sensor'\]\['film'\]\['rfilter'\]"
+        r"film filters with a (Gaussian of 0.5 pixel \(Mitsuba's default\)|TentFilter), which spreads each sample "
+        r"over neighbouring pixels, and the "
+        r"scorer reads box-filtered renders: set scene\['sensor'\]\['film'\]\['rfilter'\] = \{'type': 'box'\}"
     )
     with pytest.raises(ValueError, match=match):
         render_until(blurred, scorer, 0.9, time_budget_s=1, max_spp=8, warmup=False)
@@ -357,6 +362,35 @@ def test_loops_that_render_whole_images_refuse_a_film_that_is_not_box_filtered(s
     with pytest.raises(ValueError, match=match):
         render_adaptive(blurred, scorer, total_spp=8, warmup=False)
     render_until(scene, scorer, 0.9, time_budget_s=1, max_spp=8, warmup=False)  # the box-filtered scene runs
+    _, log = render_until(blurred, None, None, time_budget_s=1, max_spp=8, warmup=False)  # nothing scored: any filter
+    assert log[-1]["spp"] == 8
+
+
+def test_a_scorer_that_learnt_the_gaussian_needs_a_gaussian_film(scene):
+    torch.manual_seed(0)
+    gaussian = Scorer(create_model("fcnn_fast"), pixel_filter="gaussian")
+    assert gaussian.pixel_filter == "gaussian" and Scorer(create_model("fcnn_fast")).pixel_filter == "box"
+    _, log = render_until(_through(scene, "gaussian"), gaussian, 0.9, time_budget_s=1, max_spp=8, warmup=False)
+    assert log[-1]["spp"] <= 8
+    refused = r"film filters with a box, and the scorer reads gaussian-filtered renders: .*\{'type': 'gaussian'\}"
+    with pytest.raises(ValueError, match=refused):
+        render_until(scene, gaussian, 0.9, time_budget_s=1, max_spp=8, warmup=False)
+    wider = {**scene["sensor"]["film"], "rfilter": {"type": "gaussian", "stddev": 1.0}}
+    with pytest.raises(ValueError, match=r"film filters with a GaussianFilter, which spreads"):
+        render_until(
+            {**scene, "sensor": {**scene["sensor"], "film": wider}}, gaussian, 0.9, time_budget_s=1, warmup=False
+        )
+    with pytest.raises(ValueError, match="pixel_filter must be one of"):
+        Scorer(create_model("fcnn_fast"), pixel_filter="tent")
+
+
+def test_check_pixel_filter_names_what_to_do():
+    check_pixel_filter("box", "box")
+    check_pixel_filter("gaussian", "gaussian")
+    with pytest.raises(ValueError, match=r"per-pixel sampling traces box-filtered pixels.*unet_fast"):
+        check_pixel_filter("box", "gaussian", per_pixel=True)
+    with pytest.raises(ValueError, match=r"a TentFilter, which spreads .* <rfilter type=\"box\"/>"):
+        check_pixel_filter("TentFilter[radius=1.000000]", "box")
 
 
 @pytest.mark.parametrize(

@@ -229,3 +229,12 @@ def test_render_adaptive_takes_a_probe_larger_than_its_grown_steps(llvm_scene):
     probe = log[first + 1]
     assert probe["scored"] and probe["spp"] - log[first]["spp"] == pytest.approx(8)
     assert true_ssim(scorer.images[-1], reference) < probe["true"] - 0.05  # the scorer rated the probe, not the image
+
+
+def test_per_pixel_sampling_refuses_a_scorer_of_gaussian_filtered_renders(llvm_scene):
+    """Per-pixel films trace box-filtered pixels whatever the film says: a Gaussian scorer would read them low."""
+    scene, reference = llvm_scene
+    gaussian = ReferenceScorer(reference)
+    gaussian.pixel_filter = "gaussian"
+    with pytest.raises(ValueError, match=r"per-pixel sampling traces box-filtered pixels .* gaussian-filtered renders"):
+        render_adaptive(scene, gaussian, total_spp=8, warmup=False)

@@ -173,6 +173,18 @@ def test_pretrained_roundtrip(tmp_path, fast_net):
     assert not load_pretrained(str(pt)).training  # a path to the .pt works too
 
 
+def test_the_card_says_which_pixel_filter_the_weights_read(tmp_path, fast_net):
+    spec = {"name": "fcnn_fast"}
+    save_pretrained(fast_net, "plain", {}, dir=tmp_path, spec=spec)
+    save_pretrained(fast_net, "gauss", {"pixel_filter": "gaussian"}, dir=tmp_path, spec=spec)
+    save_pretrained(fast_net, "odd", {"pixel_filter": "tent"}, dir=tmp_path, spec=spec)
+    assert Scorer.from_pretrained("plain", dir=tmp_path).pixel_filter == "box"  # a card that says none: box
+    assert Scorer.from_pretrained("gauss", dir=tmp_path).pixel_filter == "gaussian"
+    assert Scorer.from_pretrained("gauss", dir=tmp_path, pixel_filter="box").pixel_filter == "box"
+    with pytest.raises(PretrainedError, match=r"weights 'odd': the card's pixel_filter 'tent' is none of"):
+        Scorer.from_pretrained("odd", dir=tmp_path)
+
+
 def test_pretrained_export_is_reproducible(tmp_path, fast_net):
     """The same weights exported twice are the same bytes (the card's sha256 names the weights, not the export)."""
     shas = [

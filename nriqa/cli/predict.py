@@ -8,7 +8,7 @@
 image the network saw | the map with a colour bar). Prints ``path score`` per image -- ``path score low
 high`` for shipped weights with a calibrated interval (where the true mean SSIM lies, 90 %, its coverage
 measured on the card) -- or with ``--json`` one JSON object per line (path, score, low, high, level,
-quantity, height, width, hdr, seconds, map, figure); stdout carries nothing else. Map models predict
+quantity, pixel_filter, height, width, hdr, seconds, map, figure); stdout carries nothing else. Map models predict
 SSIM (higher is better), the patch model MAE (lower is better).
 
 Inputs: EXR (RGB, RGBA, luminance-only; half or float; scanline or tiled) is linear HDR and is
@@ -195,6 +195,7 @@ def score_file(
         "high": None if result.high is None else round(result.high, 6),
         "level": None if scorer.interval is None else scorer.interval.level,
         "quantity": result.quantity,
+        "pixel_filter": getattr(scorer, "pixel_filter", "box"),  # the filter of the renders the weights read
         "height": int(image.shape[0]),
         "width": int(image.shape[1]),
         "hdr": hdr,

@@ -27,7 +27,11 @@ from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
 from nriqa.inference.interval import LOOP_KINDS, ScoreInterval, loop_card_key
 
-__all__ = ["Scorer", "ScoreResult", "ScorerInputError"]
+__all__ = ["PIXEL_FILTERS", "Scorer", "ScoreResult", "ScorerInputError"]
+
+# The pixel (reconstruction) filters a scorer can have learnt renders through: "box", each sample counted for
+# its own pixel (every in-house dataset), and "gaussian", Mitsuba's film default (standard deviation 0.5 pixel).
+PIXEL_FILTERS = ("box", "gaussian")
 
 
 class ScorerInputError(NriqaError):
@@ -89,6 +93,11 @@ class Scorer:
             rates (a two-buffer scorer's: the halves' score carried to the whole image). The loops'
             sure stops use their low end where one is given (card ``score_interval_loop_uniform`` /
             ``_adaptive``); other kinds keep the result's ``low``. Results of a call do not change.
+        pixel_filter: the pixel filter of the renders the network learnt to read (:data:`PIXEL_FILTERS`):
+            ``"box"`` (each sample counted for its own pixel; every shipped file but one) or ``"gaussian"``
+            (Mitsuba's film default, e.g. ``unet_fast_gaussian``). :meth:`from_pretrained` takes it from the
+            card (``pixel_filter``; ``"box"`` where it says none). The Scorer cannot see a render's filter, so
+            it reads any image as if it had this one; the render loops check the scene's film against it.
 
     Input (``__call__``): numpy ``(H, W, 3)`` or ``(B, H, W, 3)``, torch ``(3, H, W)`` or
     ``(B, 3, H, W)``; grayscale ``(H, W)`` (or one channel) is replicated to RGB, a fourth (alpha)
@@ -164,6 +173,7 @@ class Scorer:
         interval: ScoreInterval | None = None,
         ldr_interval: ScoreInterval | None = None,
         loop_intervals: Mapping[str, ScoreInterval] | None = None,
+        pixel_filter: str = "box",
     ):
         output = getattr(net, "output", None)
         if output not in ("map", "patch"):
@@ -174,6 +184,8 @@ class Scorer:
             raise ValueError(f"stride must be >= 1, got {stride}")
         if tile < 0:
             raise ValueError(f"tile must be >= 0 (0 = never tile), got {tile}")
+        if pixel_filter not in PIXEL_FILTERS:
+            raise ValueError(f"pixel_filter must be one of {list(PIXEL_FILTERS)}, got {pixel_filter!r}")
         window = int(getattr(net, "window", 0) or 0) if window is None else int(window)
         if window < 0 or (output != "map" and window):
             raise ValueError(f"window must be >= 0 and is for map models only, got {window} for {type(net).__name__}")
@@ -209,6 +221,7 @@ class Scorer:
         self.interval = interval
         self.ldr_interval = ldr_interval
         self.loop_intervals = loop_intervals
+        self.pixel_filter = pixel_filter
 
     @property
     def higher_is_better(self) -> bool:
@@ -222,7 +235,8 @@ class Scorer:
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
         The card's calibrated ``score_interval`` (and ``score_interval_ldr``, ``score_interval_loop_uniform``,
         ``score_interval_loop_adaptive``), if it has them, become the scorer's ``interval`` (and
-        ``ldr_interval``, ``loop_intervals``) unless given (``interval=None`` turns them all off).
+        ``ldr_interval``, ``loop_intervals``) unless given (``interval=None`` turns them all off); the card's
+        ``pixel_filter`` (``"box"`` if it has none) becomes the scorer's.
         """
         from nriqa.inference import DEFAULT_WEIGHTS
         from nriqa.inference.pretrained import PretrainedError, load_card, net_from_card
@@ -241,6 +255,12 @@ class Scorer:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
                 ) from None
+        learnt = card.get("pixel_filter", "box")
+        if learnt not in PIXEL_FILTERS:
+            raise PretrainedError(
+                f"weights {name!r}: the card's pixel_filter {learnt!r} is none of {list(PIXEL_FILTERS)}"
+            )
+        kwargs.setdefault("pixel_filter", learnt)
         return cls(net, **kwargs)
 
     @classmethod

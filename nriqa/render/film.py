@@ -7,9 +7,11 @@ per pixel through :class:`~nriqa.render.pixel_renderer.PixelRenderer` (JIT varia
 two-buffer scorers); the tile film
 of :mod:`nriqa.render.tiles` renders film crops. Every render call of a film gets its own seed,
 ``seed + k`` for the ``k``-th call. Scene dictionaries are as built by ``data_gen.render.scene_dict``:
-a box pixel filter, so that a sample counts for its own pixel only (other filters would blur across):
-films that render with ``mi.render`` refuse any other (:func:`check_box_filter`); :class:`PixelFilm` traces its
-own camera rays, a point uniform in each pixel, whatever the scene's filter.
+a box pixel filter, so that a sample counts for its own pixel only (other filters spread it over its
+neighbours). Each film says which filter its images have (``pixel_filter``): films that render with
+``mi.render`` the scene's (:func:`scene_pixel_filter`), :class:`PixelFilm` always ``"box"`` (it traces its
+own camera rays, a point uniform in each pixel, whatever the scene's filter). A render loop checks that
+it is the one its scorer learnt (:func:`check_pixel_filter`).
 """
 
 from __future__ import annotations
@@ -28,9 +30,10 @@ __all__ = [
     "HalfFilm",
     "ImageFilm",
     "PixelFilm",
-    "check_box_filter",
+    "check_pixel_filter",
     "load_scene",
     "render_spp",
+    "scene_pixel_filter",
     "split_halves",
 ]
 
@@ -44,13 +47,14 @@ class Film(Protocol):
     ``image``: ``(H, W, 3)`` float32 linear mean (``None`` before the first pass); ``count``:
     ``(H, W)`` float64 samples per pixel; ``spp``: their mean; ``quantum``: every count it renders
     uniformly is a multiple of it; ``log_counts``: whether a loop's last row carries ``count`` as
-    ``spp_map``.
+    ``spp_map``; ``pixel_filter``: the pixel filter its images have (:func:`scene_pixel_filter`).
     """
 
     image: np.ndarray | None
     count: np.ndarray
     quantum: int
     log_counts: bool
+    pixel_filter: str
 
     @property
     def spp(self) -> float: ...
@@ -76,20 +80,46 @@ def load_scene(scene):
     return mi.load_dict(scene)
 
 
-def check_box_filter(scene) -> None:
-    """Raise a one-line ``ValueError`` unless the loaded ``scene``'s first film filters with a box.
-
-    Mitsuba's default (``mi.cornell_box()``'s too) is a Gaussian, which spreads every sample over
-    neighbouring pixels; the shipped single-image scorers learnt box-filtered renders and read such images
-    far too good (the external Cornell boxes through a Gaussian: MAE 0.22, 2 spp read as converged).
+def scene_pixel_filter(scene) -> str:
+    """The pixel filter of the loaded ``scene``'s first film: ``"box"``, ``"gaussian"`` (Mitsuba's default,
+    standard deviation 0.5 pixel), or Mitsuba's own description of any other (e.g. ``"TentFilter[radius=1.0]"``).
     """
-    rfilter = str(scene.sensors()[0].film().rfilter()).split("[")[0].strip()
-    if rfilter != "BoxFilter":
+    text = str(scene.sensors()[0].film().rfilter()).strip()
+    if text.startswith("BoxFilter"):
+        return "box"
+    if text.startswith("GaussianFilter[stddev=0.50,"):
+        return "gaussian"
+    return text
+
+
+_FILTER_NAMES = {"box": "box", "gaussian": "Gaussian of 0.5 pixel (Mitsuba's default)"}
+_FILTER_DICTS = {"box": "{'type': 'box'}", "gaussian": "{'type': 'gaussian'}"}
+_FILTER_XML = {"box": '<rfilter type="box"/>', "gaussian": '<rfilter type="gaussian"/>'}
+
+
+def check_pixel_filter(film_filter: str, scorer_filter: str, *, per_pixel: bool = False) -> None:
+    """Raise a one-line ``ValueError`` unless a film's pixel filter is the one the scorer learnt.
+
+    A scorer reads every image as if it had its filter: the box-filter files read a render through
+    Mitsuba's default Gaussian, which spreads every sample over neighbouring pixels, far too good (the
+    external Cornell boxes through a Gaussian: MAE 0.22, 2 spp read as converged); ``unet_fast_gaussian``
+    reads box-filtered renders too low. ``per_pixel``: the film traces its own box-filtered rays
+    (:class:`PixelFilm`), whatever the scene's film says.
+    """
+    if film_filter == scorer_filter:
+        return
+    if per_pixel:
         raise ValueError(
-            f"the scene's film filters with a {rfilter}, which spreads each sample over neighbouring pixels; "
-            "nriqa's loops and scorers need a box filter: set scene['sensor']['film']['rfilter'] = "
-            "{'type': 'box'} (in a scene file: <rfilter type=\"box\"/>)"
+            f"per-pixel sampling traces box-filtered pixels whatever the scene's film, and the scorer reads "
+            f"{scorer_filter}-filtered renders: use a box-filter scorer (unet_fast), or tiles (tile=16)"
         )
+    shape = _FILTER_NAMES.get(film_filter, film_filter.split("[")[0])
+    spreads = ", which spreads each sample over neighbouring pixels" if film_filter != "box" else ""
+    raise ValueError(
+        f"the scene's film filters with a {shape}{spreads}, and the scorer reads {scorer_filter}-filtered renders: "
+        f"set scene['sensor']['film']['rfilter'] = {_FILTER_DICTS[scorer_filter]} (in a scene file: "
+        f"{_FILTER_XML[scorer_filter]}), or use a scorer for the film's filter"
+    )
 
 
 def render_spp(scene, spp: int, seed: int, sensor: int = 0) -> np.ndarray:
@@ -111,8 +141,8 @@ class ImageFilm:
     log_counts = False
 
     def __init__(self, scene, seed: int = 0, quantum: int = 1):
-        check_box_filter(scene)
         self.scene = scene
+        self.pixel_filter = scene_pixel_filter(scene)
         self.seed, self.calls = seed, 0
         self.quantum = quantum
         width, height = (int(v) for v in scene.sensors()[0].film().crop_size())
@@ -139,6 +169,7 @@ class PixelFilm:
 
     log_counts = True
     quantum = 1
+    pixel_filter = "box"  # its own camera rays, a point uniform in each pixel
 
     def __init__(self, renderer: PixelRenderer, seed: int = 0):
         self.renderer = renderer

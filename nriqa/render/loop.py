@@ -36,10 +36,10 @@ import numpy as np
 
 from nriqa.render.backend import is_jit_variant
 from nriqa.render.clock import Clock, Schedule, check_overhead, next_step, timed_score
-from nriqa.render.film import Film, HalfFilm, ImageFilm, PixelFilm, load_scene
+from nriqa.render.film import Film, HalfFilm, ImageFilm, PixelFilm, check_pixel_filter, load_scene
 from nriqa.render.pixel_renderer import PixelRenderer
 from nriqa.render.placement import PixelAllocation, Placement, UniformSteps
-from nriqa.render.rating import Probes, Rater, needs_twin, with_twin
+from nriqa.render.rating import Probes, Rater, needs_twin, reads_pixel_filter, with_twin
 from nriqa.render.stop import (
     MaxSpp,
     Progress,
@@ -131,7 +131,8 @@ def render_loop(
         scorer: the :class:`~nriqa.inference.scorer.Scorer` (or anything called like one) whose
             maps place the samples and whose score the rules read; ``None``: nothing is scored.
             A two-buffer scorer (``needs_twin``) rates the image's two halves: the film must keep a
-            half buffer (:class:`~nriqa.render.film.HalfFilm`).
+            half buffer (:class:`~nriqa.render.film.HalfFilm`). The film's pixel filter must be the one the
+            scorer learnt (``scorer.pixel_filter``, ``"box"`` if it has none; ``ValueError`` otherwise).
         schedule: the first pass's and the steps' samples per pixel (default: ``Schedule()``).
         probes: when the scorer rates a probe instead of the image (default: ``Probes()``).
         max_overhead: score only while scoring time stays within this share of render time
@@ -157,6 +158,9 @@ def render_loop(
             f"the scorer rates an image with its twin, and {type(film).__name__} keeps no half buffer: "
             "use a HalfFilm (per pixel, llvm_ad_rgb)"
         )
+    if scorer is not None:
+        film_filter = getattr(film, "pixel_filter", "box")  # a film of one's own that says none: box
+        check_pixel_filter(film_filter, reads_pixel_filter(scorer), per_pixel=isinstance(film, PixelFilm))
     schedule, probes = schedule or Schedule(), probes or Probes()
     setup, cost = _warm_up(film, placement, scorer, schedule) if warmup else (0.0, 0.0)
     clock = Clock(reference, setup, cost, max_overhead)

@@ -36,6 +36,7 @@ __all__ = [
     "at_full_samples",
     "needs_twin",
     "rate_halves",
+    "reads_pixel_filter",
     "spp_to_reach",
     "with_twin",
 ]
@@ -44,6 +45,11 @@ __all__ = [
 def needs_twin(scorer) -> bool:
     """Whether ``scorer`` rates an image together with its twin (a two-buffer scorer: ``scorer.needs_twin``)."""
     return bool(getattr(scorer, "needs_twin", False))
+
+
+def reads_pixel_filter(scorer) -> str:
+    """The pixel filter of the renders ``scorer`` learnt to read (``scorer.pixel_filter``; ``"box"`` if it has none)."""
+    return str(getattr(scorer, "pixel_filter", "box"))
 
 
 def with_twin(scorer, twin: np.ndarray | None):

@@ -14,7 +14,7 @@ import numpy as np
 
 from nriqa.render.clock import Schedule
 from nriqa.render.error_model import ErrorModel, error_of
-from nriqa.render.film import WARMUP_SEED, check_box_filter, load_scene, render_spp
+from nriqa.render.film import WARMUP_SEED, load_scene, render_spp, scene_pixel_filter
 
 __all__ = ["TileFilm", "TileRefinement", "expected_gain", "tile_grid"]
 
@@ -86,7 +86,7 @@ class TileFilm:
         width, height = int(film["width"]), int(film["height"])
         self.tiles = tile_grid(width, height, tile)
         self.scene = load_scene(_with_tile_sensors(scene, self.tiles))
-        check_box_filter(self.scene)
+        self.pixel_filter = scene_pixel_filter(self.scene)
         index = _sensor_index(self.scene)
         self.full, self.crops = index[(0, 0, width, height)], [index[t] for t in self.tiles]
         self.seed, self.calls = seed, 0
