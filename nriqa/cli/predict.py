@@ -84,7 +84,8 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument(
         "--model",
         default=DEFAULT_WEIGHTS,
-        help=f"shipped weights name or a path to a .pt (default {DEFAULT_WEIGHTS})",
+        help=f"shipped weights name or a path to a .pt (default {DEFAULT_WEIGHTS}, for box-filtered renders; "
+        "unet_fast_gaussian for renders through Mitsuba's default Gaussian film filter)",
     )
     src.add_argument("--checkpoint", type=Path, help="a training checkpoint (.ckpt) instead of shipped weights")
     ap.add_argument(
