@@ -82,7 +82,7 @@ def load_scene(scene):
 
 def scene_pixel_filter(scene) -> str:
     """The pixel filter of the loaded ``scene``'s first film: ``"box"``, ``"gaussian"`` (Mitsuba's default,
-    standard deviation 0.5 pixel), or Mitsuba's own description of any other (e.g. ``"TentFilter[radius=1.0]"``).
+    standard deviation 0.5 pixel), or Mitsuba's own description of any other (e.g. ``"TentFilter[radius=1.000000]"``).
     """
     text = str(scene.sensors()[0].film().rfilter()).strip()
     if text.startswith("BoxFilter"):
