@@ -93,8 +93,6 @@ def scene_pixel_filter(scene) -> str:
 
 
 _FILTER_NAMES = {"box": "box", "gaussian": "Gaussian of 0.5 pixel (Mitsuba's default)"}
-_FILTER_DICTS = {"box": "{'type': 'box'}", "gaussian": "{'type': 'gaussian'}"}
-_FILTER_XML = {"box": '<rfilter type="box"/>', "gaussian": '<rfilter type="gaussian"/>'}
 
 
 def check_pixel_filter(film_filter: str, scorer_filter: str, *, per_pixel: bool = False) -> None:
@@ -117,8 +115,8 @@ def check_pixel_filter(film_filter: str, scorer_filter: str, *, per_pixel: bool 
     spreads = ", which spreads each sample over neighbouring pixels" if film_filter != "box" else ""
     raise ValueError(
         f"the scene's film filters with a {shape}{spreads}, and the scorer reads {scorer_filter}-filtered renders: "
-        f"set scene['sensor']['film']['rfilter'] = {_FILTER_DICTS[scorer_filter]} (in a scene file: "
-        f"{_FILTER_XML[scorer_filter]}), or use a scorer for the film's filter"
+        f"set scene['sensor']['film']['rfilter'] = {{'type': '{scorer_filter}'}} (in a scene file: "
+        f'<rfilter type="{scorer_filter}"/>), or use a scorer for the film\'s filter'
     )
 
 
