@@ -196,7 +196,7 @@ def score_file(
         "high": None if result.high is None else round(result.high, 6),
         "level": None if scorer.interval is None else scorer.interval.level,
         "quantity": result.quantity,
-        "pixel_filter": getattr(scorer, "pixel_filter", "box"),  # the filter of the renders the weights read
+        "pixel_filter": scorer.pixel_filter,  # the filter of the renders the weights read
         "height": int(image.shape[0]),
         "width": int(image.shape[1]),
         "hdr": hdr,
