@@ -121,3 +121,28 @@ def test_mitsubas_gaussian_filter_lies_inside_the_family_the_augmentation_draws(
     real, plain = noise_stats(*images["gaussian"]), noise_stats(*box)
     assert abs(plain[0]) < 0.1 < narrow[0] < real[0] < wide[0], (narrow, real, wide, plain)
     assert wide[1] < real[1] < narrow[1] < plain[1], (narrow, real, wide, plain)
+
+
+def test_renders_already_through_a_filter_are_not_filtered_again(synthetic_dataset, tmp_path):
+    import dataclasses
+    import shutil
+
+    from nriqa.io.manifest import read_manifest, write_manifest
+
+    root = tmp_path / "mixed"
+    shutil.copytree(synthetic_dataset, root)
+    records, meta = read_manifest(root)
+    marked = [dataclasses.replace(r, pixel_filter="gaussian") if r.scene == "alpha" else r for r in records]
+    write_manifest(root, marked, meta)
+    mixed = make_dm(root, pixel_filter_p=1.0).train_set
+    plain = make_dm(synthetic_dataset, pixel_filter_p=1.0).train_set
+    kinds = set()
+    for k in range(48):
+        a, b = plain.draw(k), mixed.draw(k)
+        assert (a.pair.record.id, a.y, a.x, a.jitter) == (b.pair.record.id, b.y, b.x, b.jitter)
+        native = b.pair.record.scene == "alpha"
+        assert (b.pixel_sigma is None) == native and a.pixel_sigma is not None
+        if native:
+            assert torch.equal(mixed[k][0], make_dm(synthetic_dataset).train_set[k][0])  # as the render gave it
+        kinds.add(native)
+    assert kinds == {True, False}

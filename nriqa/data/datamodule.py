@@ -71,7 +71,9 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_p: the share of training patches through a renderer's pixel filter, a Gaussian of
             Mitsuba's form with a standard deviation uniform in ``pixel_filter_sigma`` pixels, noisy image,
             twin and reference alike, before the display and the target (:mod:`nriqa.data.pixel_filter`);
-            0 (the default) draws none and leaves every other draw as it was.
+            0 (the default) draws none and leaves every other draw as it was. Images the manifest says were
+            rendered through a filter (data_gen's ``pixel_filter``) are never filtered again, so such
+            renders and box-filtered ones can be learnt together.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its

@@ -86,8 +86,8 @@ class TrainPatches(Dataset):
 
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
-    (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`), each applied to noisy image,
-    twin and reference alike, and the target is computed from the textured, filtered, displayed, jittered
+    (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`; never on images the manifest
+    says were rendered through one), each applied to noisy image, twin and reference alike, and the target is computed from the textured, filtered, displayed, jittered
     pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
@@ -171,6 +171,8 @@ class TrainPatches(Dataset):
         jitter = sample_jitter(g, hsv=self.hsv, geometric=self.geometric) if self.hsv or self.geometric else None
         albedo = sample_albedo(g, self.albedo_p)
         sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn last: the rest as before
+        if pair.record.pixel_filter != "box":
+            sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
         return Draw(pair, y, x, display, jitter, albedo, sigma)
 
     def __getitem__(self, index: int) -> tuple[Tensor, Tensor]:
