@@ -146,3 +146,25 @@ def test_renders_already_through_a_filter_are_not_filtered_again(synthetic_datas
             assert torch.equal(mixed[k][0], make_dm(synthetic_dataset).train_set[k][0])  # as the render gave it
         kinds.add(native)
     assert kinds == {True, False}
+
+
+def test_a_texture_laid_on_a_gaussian_render_goes_through_its_filter(synthetic_dataset, tmp_path):
+    import dataclasses
+    import shutil
+
+    from nriqa.data.albedo import texture
+    from nriqa.io.manifest import read_manifest, write_manifest
+
+    root = tmp_path / "gaussian"
+    shutil.copytree(synthetic_dataset, root)
+    records, meta = read_manifest(root)
+    write_manifest(root, [dataclasses.replace(r, pixel_filter="gaussian") for r in records], meta)
+    kw = dict(jitter={"hsv": False, "geometric": False})
+    textured = make_dm(root, albedo_p=1.0, pixel_filter_p=1.0, **kw).train_set
+    plain = make_dm(root, **kw).train_set
+    for k in range(8):
+        d = textured.draw(k)
+        assert d.pixel_sigma is None and d.albedo is not None
+        smooth = apply_pixel_filter(texture(d.albedo, 32)[None], 0.5)[0]
+        assert torch.allclose(textured[k][0], plain[k][0] * smooth, atol=1e-6)
+        assert not torch.allclose(smooth, texture(d.albedo, 32), atol=1e-3)

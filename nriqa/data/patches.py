@@ -17,7 +17,13 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
-from nriqa.data.pixel_filter import SIGMA_RANGE, apply_pixel_filter, check_pixel_filter, sample_pixel_filter
+from nriqa.data.pixel_filter import (
+    SIGMA_RANGE,
+    apply_pixel_filter,
+    check_pixel_filter,
+    rendered_sigma,
+    sample_pixel_filter,
+)
 from nriqa.data.images import ImagePair
 from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
 from nriqa.data.targets import check_target, compute_target
@@ -219,16 +225,25 @@ def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -
     """Each item of the ``(B, C, P, P)`` member stacks multiplied by its draw's albedo texture, the same for every member.
 
     ``lines``: the share of those textures that are grilles of thin lines (:func:`nriqa.data.albedo.texture`).
+    A render made through a Gaussian filter already gets its texture through the same filter (emulated), as
+    the renderer would have drawn the texture; other renders get it as it is.
     """
     rows = [i for i, d in enumerate(draws) if d.albedo is not None]
     if not rows:
         return members
     size = members[0].shape[-1]
-    textures = torch.stack([texture(draws[i].albedo, size, lines) for i in rows]).to(members[0])
+    textures = torch.stack([rendered_texture(draws[i], size, lines) for i in rows]).to(members[0])
     out = [m.clone() for m in members]
     for o in out:
         o[rows] = o[rows] * textures
     return out
+
+
+def rendered_texture(draw: Draw, size: int, lines: float) -> Tensor:
+    """Draw ``draw``'s ``(C, size, size)`` albedo texture, through its render's own filter where it has one."""
+    tex = texture(draw.albedo, size, lines)
+    sigma = rendered_sigma(draw.pair.record.pixel_filter)
+    return tex if sigma is None else apply_pixel_filter(tex[None], sigma)[0]
 
 
 def pixel_filter_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:

@@ -66,6 +66,16 @@ def apply_pixel_filter(x: Tensor, sigma: float) -> Tensor:
     return flat.reshape(b, c, h, w)
 
 
+# Renders made through a filter already (the manifest's ``pixel_filter``) and the emulated filter of the same
+# spread, for what is laid onto them afterwards: Mitsuba's ``gaussian`` defaults to a standard deviation of 0.5.
+RENDERED_SIGMA = {"gaussian": 0.5}
+
+
+def rendered_sigma(pixel_filter: str) -> float | None:
+    """The emulated standard deviation standing for a render's own filter; ``None`` for box or one not emulated."""
+    return RENDERED_SIGMA.get(pixel_filter)
+
+
 def sample_pixel_filter(
     generator: torch.Generator, p: float, sigma_range: tuple[float, float] = SIGMA_RANGE
 ) -> float | None:
