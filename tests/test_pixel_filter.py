@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import dataclasses
+import shutil
+
 import numpy as np
 import pytest
 import torch
 from test_batched_patches import MIX, make_dm
 
+from nriqa.data.albedo import texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import item_generator
 from nriqa.data.pixel_filter import apply_pixel_filter, gaussian_weight, kernel_1d, sample_pixel_filter
 from nriqa.data.targets import compute_target
+from nriqa.io.manifest import read_manifest, write_manifest
 
 
 @pytest.mark.parametrize("sigma", [0.1, 0.3, 0.5, 0.8, 2.0])
@@ -123,18 +128,19 @@ def test_mitsubas_gaussian_filter_lies_inside_the_family_the_augmentation_draws(
     assert wide[1] < real[1] < narrow[1] < plain[1], (narrow, real, wide, plain)
 
 
-def test_renders_already_through_a_filter_are_not_filtered_again(synthetic_dataset, tmp_path):
-    import dataclasses
-    import shutil
-
-    from nriqa.io.manifest import read_manifest, write_manifest
-
-    root = tmp_path / "mixed"
-    shutil.copytree(synthetic_dataset, root)
+def through_gaussian(dataset, root, scenes=None):
+    """A copy of ``dataset`` whose manifest says ``scenes`` (all: ``None``) were rendered through Mitsuba's Gaussian."""
+    shutil.copytree(dataset, root)
     records, meta = read_manifest(root)
-    marked = [dataclasses.replace(r, pixel_filter="gaussian") if r.scene == "alpha" else r for r in records]
+    marked = [
+        dataclasses.replace(r, pixel_filter="gaussian") if scenes is None or r.scene in scenes else r for r in records
+    ]
     write_manifest(root, marked, meta)
-    mixed = make_dm(root, pixel_filter_p=1.0).train_set
+    return root
+
+
+def test_renders_already_through_a_filter_are_not_filtered_again(synthetic_dataset, tmp_path):
+    mixed = make_dm(through_gaussian(synthetic_dataset, tmp_path / "mixed", {"alpha"}), pixel_filter_p=1.0).train_set
     plain = make_dm(synthetic_dataset, pixel_filter_p=1.0).train_set
     kinds = set()
     for k in range(48):
@@ -149,16 +155,7 @@ def test_renders_already_through_a_filter_are_not_filtered_again(synthetic_datas
 
 
 def test_a_texture_laid_on_a_gaussian_render_goes_through_its_filter(synthetic_dataset, tmp_path):
-    import dataclasses
-    import shutil
-
-    from nriqa.data.albedo import texture
-    from nriqa.io.manifest import read_manifest, write_manifest
-
-    root = tmp_path / "gaussian"
-    shutil.copytree(synthetic_dataset, root)
-    records, meta = read_manifest(root)
-    write_manifest(root, [dataclasses.replace(r, pixel_filter="gaussian") for r in records], meta)
+    root = through_gaussian(synthetic_dataset, tmp_path / "gaussian")
     kw = dict(jitter={"hsv": False, "geometric": False})
     textured = make_dm(root, albedo_p=1.0, pixel_filter_p=1.0, **kw).train_set
     plain = make_dm(root, **kw).train_set

@@ -93,8 +93,8 @@ class TrainPatches(Dataset):
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
     (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`; never on images the manifest
-    says were rendered through one), each applied to noisy image, twin and reference alike, and the target is computed from the textured, filtered, displayed, jittered
-    pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
+    says were rendered through one), each applied to noisy image, twin and reference alike, and the target
+    is computed from the textured, filtered, displayed, jittered pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
