@@ -38,6 +38,7 @@ NEW = (
     "strands",
     "foliage",
     "shafts",
+    "pebbles",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -271,6 +272,33 @@ def test_foliage_colours_its_leaves_one_by_one_and_looks_up_a_third_of_the_time(
         ups.append(forward[1] > 0)
         assert {"canopy", "sun", "sky", "ground", "bush0_0"} <= set(scene) and origin[1] > 0
     assert 0.15 < np.mean(ups) < 0.55, "about a third of the views look up through the canopy"
+
+
+def test_pebbles_lie_on_the_ground_each_stone_its_own_colour():
+    from data_gen.scenes.pebbles import ICOSA_FACES, ICOSA_VERTICES, stones_mesh
+
+    assert np.allclose(np.linalg.norm(ICOSA_VERTICES, axis=1), 1)
+    edges = np.sort(np.concatenate([ICOSA_FACES[:, [0, 1]], ICOSA_FACES[:, [1, 2]], ICOSA_FACES[:, [2, 0]]]), axis=1)
+    assert len(np.unique(edges, axis=0)) == 30, "a closed icosahedron: 30 edges, each shared by two faces"
+    mesh = stones_mesh("s", np.random.default_rng(0), 200, 1.0, np.full(200, 0.05), {"type": "diffuse"})
+    params = mi.traverse(mesh)
+    pos = np.array(params["vertex_positions"]).reshape(-1, 3)
+    assert len(pos) == 200 * 12 and mesh.face_count() == 200 * 20
+    assert pos[:, 1].min() < 0 < pos[:, 1].max() < 0.05, "sunk a little into the ground, flatter than wide"
+    assert np.abs(pos[:, [0, 2]]).max() < 1.05
+    colours = np.array(mesh.attribute_buffer("vertex_color")).reshape(-1, 3)
+    assert len(np.unique(colours[::12], axis=0)) > 190 and (colours[::12] == colours[11::12]).all(), (
+        "one colour a stone"
+    )
+    spec = get_scene("pebbles")
+    down, suns = [], []
+    for v in range(24):
+        scene = spec.build(np.random.default_rng(derive_seed(0, "pebbles", v)))
+        forward = np.array(scene["sensor"]["to_world"].matrix)[:3, 2]
+        down.append(forward[1] < -0.9)
+        suns.append("sun" in scene)
+        assert {"stones", "sky", "ground"} <= set(scene) and forward[1] < 0
+    assert 0.1 < np.mean(down) < 0.5 and 0.5 < np.mean(suns) < 0.95, "some views straight down, some overcast"
 
 
 def test_shafts_camera_stands_in_the_haze_and_the_sun_comes_in_through_the_window():
