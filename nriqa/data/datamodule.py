@@ -74,6 +74,10 @@ class NRIQADataModule(L.LightningDataModule):
             0 (the default) draws none and leaves every other draw as it was. Images the manifest says were
             rendered through a filter (data_gen's ``pixel_filter``) are never filtered again, so such
             renders and box-filtered ones can be learnt together.
+        anchor_scenes: scene families whose training patches learn the starting network's map instead of
+            their SSIM target (with ``init_from``: :class:`nriqa.training.module.NRIQAModule`'s teacher),
+            so a fine-tune on a few scenes of them keeps what the start learnt from many while the other
+            families teach it something new; empty (the default): every patch learns its target.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -103,6 +107,7 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_lines: float = 0.0,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
+        anchor_scenes: Sequence[str] = (),
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -120,6 +125,7 @@ class NRIQADataModule(L.LightningDataModule):
         data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         display = None if display is None else {k: float(v) for k, v in dict(display).items()}
         scenes = None if scenes is None else [str(s) for s in scenes]
+        anchor_scenes = [str(s) for s in anchor_scenes or ()]
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
@@ -131,6 +137,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.data_dir = data_dir
         self.val_scene = val_scene
         self.scenes = scenes
+        self.anchor_scenes = frozenset(anchor_scenes)
         self.patch_size = patch_size
         self.target = target
         self.batch_size = batch_size
@@ -176,6 +183,7 @@ class NRIQADataModule(L.LightningDataModule):
             albedo_lines=self.albedo_lines,
             pixel_filter_p=self.pixel_filter_p,
             pixel_filter_sigma=self.pixel_filter_sigma,
+            anchor_scenes=self.anchor_scenes,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

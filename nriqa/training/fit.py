@@ -106,6 +106,11 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.get("bn_estimate"):
         used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), int(cfg.bn_estimate))
         model.hparams.update({"bn_estimate": used})
+    if datamodule.anchor_scenes:
+        if not cfg.get("init_from"):
+            raise ValueError("data.anchor_scenes learns the starting network's map there: it needs init_from")
+        model.set_teacher(model.net)  # the start, after init_from and bn_estimate
+        model.hparams.update({"anchor_scenes": sorted(datamodule.anchor_scenes)})
     if mix:
         errors = image_errors(model.net, datamodule.train_pairs)
         weights = sampling_weights(errors, mix, power)

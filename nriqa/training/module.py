@@ -7,6 +7,7 @@ the checkpoint's hyper-parameters alone rebuild the network
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections.abc import Callable, Mapping
 
@@ -43,6 +44,11 @@ class NRIQAModule(L.LightningModule):
     Logs per epoch for ``train`` and ``val``: ``loss``, ``pcc``, ``srocc``, ``tau`` (predictions
     and targets are gathered over the epoch with torchmetrics, maps subsampled with
     :func:`nriqa.core.sampling.metric_samples`, capped at ``max_metric_samples`` evenly spaced samples).
+
+    Anchoring (:meth:`set_teacher`): training items ``(input, target, anchored)`` learn the teacher's map
+    where ``anchored`` is true (``data.anchor_scenes``) and their target elsewhere, so a fine-tune keeps
+    the starting network's reading of families it learnt from many more scenes than the fine-tune holds.
+    The teacher is frozen, runs in eval mode, and is neither trained nor saved in checkpoints.
 
     A non-finite training loss is counted (``nonfinite_steps``, ``first_nonfinite_step``), the
     optimizer step is skipped, and, with ``stop_on_nonfinite``, training stops after that batch.
@@ -109,9 +115,31 @@ class NRIQAModule(L.LightningModule):
         self.history: list[dict[str, float]] = []
         self.last_val: tuple[Tensor, Tensor] | None = None
         self._val_row: dict[str, float] = {}
+        self._teacher: tuple[nn.Module, ...] = ()  # a tuple: not a submodule, so not trained nor saved
 
     def forward(self, x: Tensor) -> Tensor:
         return self.net(x)
+
+    def set_teacher(self, teacher: nn.Module) -> None:
+        """Anchored training items learn ``teacher``'s map from now on (a frozen copy is kept)."""
+        teacher = copy.deepcopy(teacher).eval()
+        for p in teacher.parameters():
+            p.requires_grad_(False)
+        self._teacher = (teacher,)
+
+    def anchored_target(self, x: Tensor, y: Tensor, anchored: Tensor) -> Tensor:
+        """``y`` with the teacher's map of ``x`` where ``anchored`` (one flag per item)."""
+        if not self._teacher:
+            raise RuntimeError("anchored training items need a teacher: set data.anchor_scenes with init_from")
+        if not bool(anchored.any()):
+            return y
+        teacher = self._teacher[0]
+        first = next(teacher.parameters(), None)
+        if first is not None and first.device != x.device:
+            teacher.to(x.device)
+        with torch.no_grad():
+            t = teacher(x).to(y.dtype)
+        return torch.where(anchored.to(y.device).view(-1, *([1] * (y.ndim - 1))), t, y)
 
     def on_train_batch_start(self, batch, batch_idx: int) -> None:
         # Lightning sets and restores modes itself (validation captures and restores each module's),
@@ -120,7 +148,9 @@ class NRIQAModule(L.LightningModule):
             freeze_batchnorm(self.net)
 
     def _step(self, batch, stage: str) -> Tensor:
-        x, y = batch
+        x, y, *anchored = batch
+        if anchored:
+            y = self.anchored_target(x, y, anchored[0])
         pred = self(x)
         loss = self.loss_fn(pred, y)
         if torch.isfinite(loss):

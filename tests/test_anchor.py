@@ -1,0 +1,68 @@
+"""Anchored fine-tuning: patches of named families learn the starting network's map, the others their target."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from test_batched_patches import make_dm
+from test_train import compose_cfg
+
+from nriqa.losses import create_loss
+from nriqa.training.fit import train
+from nriqa.training.module import NRIQAModule
+
+
+def test_patches_of_anchored_families_carry_their_flag_and_the_same_draws(synthetic_dataset):
+    plain = make_dm(synthetic_dataset).train_set
+    anchored = make_dm(synthetic_dataset, anchor_scenes=["alpha"]).train_set
+    scenes = {plain.draw(k).pair.record.scene for k in range(16)}
+    assert scenes == {"alpha", "gamma"}, "beta is the validation family"
+    items, before = anchored.__getitems__(list(range(16))), plain.__getitems__(list(range(16)))
+    for k, ((x, y, flag), (x0, y0)) in enumerate(zip(items, before)):
+        assert torch.equal(x, x0) and torch.equal(y, y0), "anchoring changes no draw and no target"
+        assert bool(flag) == (plain.draw(k).pair.record.scene == "alpha")
+    assert len(plain[0]) == 2, "without anchor_scenes the items stay (input, target)"
+
+
+@pytest.mark.parametrize(
+    ("scenes", "message"),
+    [(["delta"], "delta not among the training families"), (["alpha", "gamma"], "names every training family")],
+)
+def test_anchor_scenes_must_be_some_of_the_training_families(synthetic_dataset, scenes, message):
+    with pytest.raises(ValueError, match=message) as info:
+        make_dm(synthetic_dataset, anchor_scenes=scenes)
+    assert "\n" not in str(info.value)
+
+
+def _module() -> NRIQAModule:
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(torch.nn.Conv2d(3, 1, 3, padding=1), torch.nn.Sigmoid())
+    return NRIQAModule(net, create_loss("l2"), optimizer=lambda params: torch.optim.SGD(params, lr=0.1))
+
+
+def test_anchored_items_learn_the_teachers_map_and_the_others_their_target():
+    module = _module()
+    x, y = torch.rand(4, 3, 8, 8), torch.rand(4, 1, 8, 8)
+    with pytest.raises(RuntimeError, match="need a teacher"):
+        module.anchored_target(x, y, torch.tensor([True, False, False, False]))
+    module.set_teacher(module.net)
+    with torch.no_grad():
+        start = module.net(x)
+        module.net[0].bias += 1.0  # the student moves; the teacher is a frozen copy
+    mixed = module.anchored_target(x, y, torch.tensor([True, False, True, False]))
+    assert torch.allclose(mixed[[0, 2]], start[[0, 2]]) and torch.equal(mixed[[1, 3]], y[[1, 3]])
+    assert all(not p.requires_grad for p in module._teacher[0].parameters())
+    assert not any(k.startswith("_teacher") for k in module.state_dict()), "the teacher is never saved"
+    module.net[0].bias.data -= 1.0  # student back at the start: an all-anchored batch has nothing to learn
+    loss = {flag: float(module._step((x, y, torch.full((4,), flag)), "train").detach()) for flag in (True, False)}
+    assert loss[True] == pytest.approx(0.0, abs=1e-12) and loss[False] > 0.01
+
+
+def test_training_with_anchor_scenes_needs_a_start_and_saves_no_teacher(tmp_path, synthetic_dataset):
+    common = ("experiment=fcnn_fast", "debug=fdr", "data.val_scene=null", "data.anchor_scenes=[alpha]")
+    with pytest.raises(ValueError, match="needs init_from"):
+        train(compose_cfg(tmp_path / "a", synthetic_dataset, *common))
+    _, objects = train(compose_cfg(tmp_path / "b", synthetic_dataset, *common, "init_from=fcnn_fast"))
+    model = objects["model"]
+    assert model.hparams["anchor_scenes"] == ["alpha"] and model._teacher
+    assert set(model.state_dict()) == {f"net.{k}" for k in model.net.state_dict()}
