@@ -10,7 +10,8 @@ exactly its own gradient, and Adam's update is per element, so each fold follows
 (tested against the per-fold training of ``nriqa-crossval``: the same patches, initial weights and updates).
 
 What it does not do, and refuses with one line: hard-example sampling, ``bn_estimate``, ``freeze_bn``,
-``data.anchor_scenes``, several devices, gradient clipping or accumulation, another precision, a scheduler that watches a metric.
+``data.anchor_scenes``, several devices, gradient clipping or accumulation, another precision, a scheduler
+that watches a metric.
 It validates nothing while training (the fold tables use each fold's end of training, ``last.ckpt``, the
 checkpoint ``nriqa-evaluate --crossval`` scores with anyway), and keeps ``trainer.max_epochs`` and
 ``trainer.max_time`` as Lightning does. A fold whose loss turns non-finite stops there (its weights as they
