@@ -87,7 +87,7 @@ def test_the_gaussian_weights_read_renders_through_mitsubas_default_filter(tiny)
     true, read = [], {"gaussian": [], "box": []}
     for r in records:
         # pebbles (stop 59) only the default learnt: this file reads its small stones far too noisy (0.39-0.64
-        # for a true 0.68-0.97 here), a shortfall the README states
+        # for a true 0.68-0.97 here), a shortfall docs/scoring.md states
         if r.role != "test" or r.scene == "pebbles":
             continue
         x, y = filtered(r.path), filtered(r.reference)
