@@ -66,3 +66,17 @@ def test_training_with_anchor_scenes_needs_a_start_and_saves_no_teacher(tmp_path
     model = objects["model"]
     assert model.hparams["anchor_scenes"] == ["alpha"] and model._teacher
     assert set(model.state_dict()) == {f"net.{k}" for k in model.net.state_dict()}
+
+
+def test_hard_sampling_leaves_anchored_images_at_the_uniform_share(tmp_path, synthetic_dataset):
+    """Anchored images learn the start's own map, so they carry no error for hard sampling: each is drawn at
+    (1 - mix) / N, and the error-proportional share goes to the learning families alone."""
+    common = ("experiment=fcnn_fast", "debug=fdr", "data.val_scene=null", "init_from=fcnn_fast")
+    args = (*common, "data.anchor_scenes=[alpha]", "hard_sampling.mix=0.5")
+    _, objects = train(compose_cfg(tmp_path / "a", synthetic_dataset, *args))
+    pairs, cdf = objects["datamodule"].train_pairs, objects["datamodule"].train_set.cdf
+    weights = torch.diff(cdf, prepend=torch.zeros(1, dtype=cdf.dtype))
+    anchored = torch.tensor([p.record.scene == "alpha" for p in pairs])
+    assert 0 < int(anchored.sum()) < len(pairs)
+    torch.testing.assert_close(weights[anchored], torch.full((int(anchored.sum()),), 0.5 / len(pairs), dtype=cdf.dtype))
+    assert float(weights[~anchored].sum()) == pytest.approx(1.0 - 0.5 * float(anchored.sum()) / len(pairs))

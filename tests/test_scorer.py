@@ -364,6 +364,65 @@ def test_export_of_several_checkpoints_ships_their_mean(tmp_path, capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 1 and not (out / "x.pt").exists()
 
 
+def test_interpolate_ships_the_weights_between_a_start_and_its_fine_tune(tmp_path, capsys):
+    """``nriqa-weights interpolate``: every float tensor at (1 - alpha) start + alpha end, one network of the
+    same size; alpha 0 and 1 give the two exactly; a shipped start, a checkpoint end; mismatches refused."""
+    out = tmp_path / "weights"
+    spec = {"name": "unet_fast", "width": 8, "depth": 1}
+    nets = []
+    for seed in (0, 1):
+        torch.manual_seed(seed)
+        nets.append(create_model(**spec, window=32).train())
+        nets[-1](torch.rand(2, 3, 32, 32))  # batch-norm statistics of its own
+    save_pretrained(nets[0].eval(), "start", {"data": "tiny"}, dir=out, spec={**spec, "window": 32})
+    ckpt = tmp_path / "fine.ckpt"
+    torch.save(
+        {
+            "state_dict": {f"net.{k}": v for k, v in nets[1].state_dict().items()},
+            "hyper_parameters": {"net": spec},
+            "global_step": 40,
+        },
+        ckpt,
+    )
+    start = str(out / "start.pt")
+    for alpha, name in ((0.0, "a0"), (0.25, "a25"), (1.0, "a1")):
+        args = ["interpolate", start, str(ckpt), name, "--alpha", str(alpha), "--spec", "window=32", "--dir", str(out)]
+        assert pretrained_main(args) == 0
+    got = {n: torch.load(out / f"{n}.pt", weights_only=True)["state_dict"] for n in ("a0", "a25", "a1")}
+    a, b = nets[0].state_dict(), nets[1].state_dict()
+    for k in a:
+        torch.testing.assert_close(got["a0"][k], a[k], rtol=0, atol=0)
+        if a[k].is_floating_point():
+            torch.testing.assert_close(got["a1"][k], b[k], rtol=0, atol=0)
+            torch.testing.assert_close(got["a25"][k], 0.75 * a[k] + 0.25 * b[k])
+        else:  # batch norm's step count: the start's
+            assert torch.equal(got["a25"][k], a[k])
+    card = json.loads((out / "a25.json").read_text())
+    assert card["interpolated"]["alpha"] == 0.25 and card["interpolated"]["end"]["global_step"] == 40
+    assert card["interpolated"]["start"]["sha256"] == json.loads((out / "start.json").read_text())["sha256"]
+    assert card["parameters"] == json.loads((out / "start.json").read_text())["parameters"]
+    assert Scorer.from_pretrained("a25", dir=out).window == 32
+    capsys.readouterr()
+    wider = {"name": "unet_fast", "width": 16, "depth": 1}
+    torch.save(
+        {
+            "state_dict": {f"net.{k}": v for k, v in create_model(**wider).state_dict().items()},
+            "hyper_parameters": {"net": wider},
+        },
+        tmp_path / "wide.ckpt",
+    )
+    for bad in (
+        ["interpolate", start, str(ckpt), "x", "--alpha", "1.5", "--spec", "window=32"],
+        ["interpolate", start, str(ckpt), "x", "--alpha", "0.5"],  # the checkpoint's spec lacks window=32
+        ["interpolate", str(ckpt), str(tmp_path / "wide.ckpt"), "x", "--alpha", "0.5"],
+        ["interpolate", "nope", str(ckpt), "x", "--alpha", "0.5"],
+    ):
+        assert pretrained_main([*bad, "--dir", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "error:" in err, err
+    assert not (out / "x.pt").exists()
+
+
 def test_flat_bright_windows_score_one(fast_net):
     """Where the whole SSIM window is one bright colour the map is 1; elsewhere it is the network's."""
     x = image(40, 48, scale=0.9)

@@ -6,10 +6,12 @@ what the weights are (data preset, commit, command, training time, cross-validat
 whatever the exporter passes) plus ``sha256`` of the ``.pt`` file, checked on every load.
 Weights are local files shipped in the package; nothing is downloaded.
 
-Export a training checkpoint, or list what is shipped (``nriqa-weights``, :mod:`nriqa.cli.weights`)::
+Export a training checkpoint, ship the weights halfway between a fine-tune and its start, or list
+what is shipped (``nriqa-weights``, :mod:`nriqa.cli.weights`)::
 
     nriqa-weights export logs/train/runs/.../checkpoints/last.ckpt fcnn_fast \\
         --card data=default --card "command=nriqa-train experiment=fcnn_fast" --card val_srocc=0.91
+    nriqa-weights interpolate unet_fast logs/.../last.ckpt unet_fast_new --alpha 0.5 --spec window=64
     nriqa-weights list
 """
 
@@ -37,6 +39,7 @@ __all__ = [
     "load_pretrained",
     "list_pretrained",
     "net_from_card",
+    "export_interpolation",
     "sha256_file",
     "update_card",
 ]
@@ -274,3 +277,73 @@ def _checkpoint_monitor(ckpt: Mapping) -> dict:
         if "ModelCheckpoint" in str(key) and isinstance(state, Mapping) and state.get("best_model_score") is not None:
             return {"monitor": state.get("monitor"), "best_model_score": float(state["best_model_score"])}
     return {}
+
+
+def export_interpolation(
+    start: str | os.PathLike,
+    end: str | os.PathLike,
+    alpha: float,
+    name: str,
+    card: Mapping,
+    dir: str | os.PathLike | None = None,
+    spec: Mapping | None = None,
+) -> Path:
+    """Ship the weights ``(1 - alpha) * start + alpha * end`` of two trainings of one network as ``name``.
+
+    For a fine-tune and the weights it started from (weight-space interpolation, as in WiSE-FT): part of
+    what the fine-tune learnt, less of its drift on what it did not see. Unlike ``export`` of several
+    checkpoints (one network per member, their maps averaged), the result is one network of the same size.
+
+    Args:
+        start, end: each a training checkpoint (``.ckpt``), shipped weights' name, or a ``.pt`` with its card.
+        alpha: in [0, 1]; 0 ships ``start``'s weights, 1 ``end``'s.
+        spec: constructor arguments that leave the weights as they are (``window``), applied to both.
+
+    Every floating-point tensor is interpolated (batch-norm statistics too); integer buffers (batch norm's
+    step count) are ``start``'s. The card gets ``interpolated`` (both sources, their sha256 where shipped,
+    ``alpha``), ``exported`` and ``commit``; entries in ``card`` win.
+
+    Raises:
+        PretrainedError: ``alpha`` outside [0, 1]; the two are not the same network (spec, weight names or
+            shapes); an unreadable source.
+    """
+    alpha = float(alpha)
+    if not 0.0 <= alpha <= 1.0:
+        raise PretrainedError(f"--alpha {alpha}: must be in [0, 1] (0 ships the start, 1 the end)")
+    (spec_a, net_a, info_a), (spec_b, net_b, info_b) = _source(start, spec), _source(end, spec)
+    if spec_a != spec_b:
+        raise PretrainedError(f"{start} and {end} are not the same network: spec {spec_a} against {spec_b}")
+    state_a, state_b = net_a.state_dict(), net_b.state_dict()
+    shapes = [(k, tuple(v.shape)) for k, v in state_a.items()]
+    if shapes != [(k, tuple(v.shape)) for k, v in state_b.items()]:
+        raise PretrainedError(f"{start} and {end} are not the same network: their weight names or shapes differ")
+    mixed = {
+        k: torch.lerp(a, state_b[k].to(a.dtype), alpha) if a.is_floating_point() else a.clone()
+        for k, a in state_a.items()
+    }
+    net_a.load_state_dict(mixed)
+    full = {
+        "interpolated": {"start": info_a, "end": info_b, "alpha": alpha},
+        "exported": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "commit": _git_commit(),
+        **dict(card),
+    }
+    return save_pretrained(net_a, name, full, dir=dir, spec=spec_a)
+
+
+def _source(source: str | os.PathLike, spec: Mapping | None) -> tuple[dict, nn.Module, dict]:
+    """A training checkpoint's or shipped weights' network spec (``spec`` merged in), network and provenance."""
+    if Path(source).suffix == ".ckpt":
+        net_spec, net, ckpt = _member(source, spec)
+        return net_spec, net, {"checkpoint": str(source), "global_step": ckpt.get("global_step")}
+    card, pt = load_card(str(source))
+    net = net_from_card(card, pt)
+    net_spec = {**card["spec"], **dict(spec or {})}
+    if net_spec != card["spec"]:
+        try:
+            rebuilt = create_model(**net_spec)
+            rebuilt.load_state_dict(net.state_dict())
+        except (TypeError, ValueError, RuntimeError, KeyError) as exc:
+            raise PretrainedError(f"{source}: the network spec {net_spec} does not fit its weights ({exc})") from None
+        net = rebuilt.eval()
+    return net_spec, net, {"weights": str(source), "sha256": card["sha256"]}

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import hydra
 import lightning as L
+import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
@@ -65,6 +66,16 @@ def exit_on_user_error(fn, *args):
         sys.exit(f"error: {message}")
 
 
+def _starting_errors(net, pairs, anchor_scenes) -> torch.Tensor:
+    """Each training image's error for hard sampling: the starting network's (:func:`image_errors`), and 0 for
+    images of anchored families, which learn that network's own map and so carry no error of their own (drawn
+    only at the uniform share; their truth error is what the anchor keeps, not what the fine-tune should chase)."""
+    learning = [i for i, p in enumerate(pairs) if p.record.scene not in anchor_scenes]
+    errors = torch.zeros(len(pairs), dtype=torch.float64)
+    errors[learning] = image_errors(net, [pairs[i] for i in learning])
+    return errors
+
+
 def _instantiate_group(cfg: DictConfig | None) -> list:
     """Instantiate every ``_target_`` entry of a callbacks/logger group (null or empty -> [])."""
     return [hydra.utils.instantiate(c) for c in (cfg or {}).values() if c is not None and "_target_" in c]
@@ -112,7 +123,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         model.set_teacher(model.net)  # the start, after init_from and bn_estimate
         model.hparams.update({"anchor_scenes": sorted(datamodule.anchor_scenes)})
     if mix:
-        errors = image_errors(model.net, datamodule.train_pairs)
+        errors = _starting_errors(model.net, datamodule.train_pairs, datamodule.anchor_scenes)
         weights = sampling_weights(errors, mix, power)
         datamodule.train_set.set_weights(weights)
         summary = draw_summary(errors, weights)
