@@ -68,15 +68,20 @@ def test_training_with_anchor_scenes_needs_a_start_and_saves_no_teacher(tmp_path
     assert set(model.state_dict()) == {f"net.{k}" for k in model.net.state_dict()}
 
 
-def test_hard_sampling_leaves_anchored_images_at_the_uniform_share(tmp_path, synthetic_dataset):
-    """Anchored images learn the start's own map, so they carry no error for hard sampling: each is drawn at
-    (1 - mix) / N, and the error-proportional share goes to the learning families alone."""
+def test_hard_sampling_leaves_anchored_images_their_uniform_share(tmp_path, synthetic_dataset):
+    """Anchored images learn the start's own map, so they carry no error for hard sampling: each keeps its uniform
+    share 1 / N of the draws, whatever the mix, and hard sampling shares out the rest among the learning images."""
     common = ("experiment=fcnn_fast", "debug=fdr", "data.val_scene=null", "init_from=fcnn_fast")
     args = (*common, "data.anchor_scenes=[alpha]", "hard_sampling.mix=0.5")
     _, objects = train(compose_cfg(tmp_path / "a", synthetic_dataset, *args))
     pairs, cdf = objects["datamodule"].train_pairs, objects["datamodule"].train_set.cdf
     weights = torch.diff(cdf, prepend=torch.zeros(1, dtype=cdf.dtype))
     anchored = torch.tensor([p.record.scene == "alpha" for p in pairs])
-    assert 0 < int(anchored.sum()) < len(pairs)
-    torch.testing.assert_close(weights[anchored], torch.full((int(anchored.sum()),), 0.5 / len(pairs), dtype=cdf.dtype))
-    assert float(weights[~anchored].sum()) == pytest.approx(1.0 - 0.5 * float(anchored.sum()) / len(pairs))
+    n_a = int(anchored.sum())
+    assert 0 < n_a < len(pairs)
+    torch.testing.assert_close(weights[anchored], torch.full((n_a,), 1 / len(pairs), dtype=cdf.dtype))
+    learning = weights[~anchored]
+    assert float(learning.sum()) == pytest.approx(1.0 - n_a / len(pairs))
+    assert float(learning.max()) > float(learning.min())  # drawn by error among the learning images
+    summary = objects["model"].hparams["hard_sampling"]
+    assert summary["images"] == len(pairs) - n_a and summary["anchored_share"] == pytest.approx(n_a / len(pairs))

@@ -66,14 +66,21 @@ def exit_on_user_error(fn, *args):
         sys.exit(f"error: {message}")
 
 
-def _starting_errors(net, pairs, anchor_scenes) -> torch.Tensor:
-    """Each training image's error for hard sampling: the starting network's (:func:`image_errors`), and 0 for
-    images of anchored families, which learn that network's own map and so carry no error of their own (drawn
-    only at the uniform share; their truth error is what the anchor keeps, not what the fine-tune should chase)."""
+def _hard_weights(net, pairs, anchor_scenes, mix: float, power: float) -> tuple[torch.Tensor, dict]:
+    """Draw weights for hard sampling, ``(N,)``, and the summary for the log.
+
+    Images of anchored families learn the starting network's own map, so they carry no error to chase: they keep
+    their uniform share of the draws (``1 / N`` each), and hard sampling (:func:`sampling_weights` of the starting
+    network's errors, :func:`image_errors`) shares out the rest among the learning families' images. Without
+    anchoring that is every image. The summary is over the learning images."""
     learning = [i for i, p in enumerate(pairs) if p.record.scene not in anchor_scenes]
-    errors = torch.zeros(len(pairs), dtype=torch.float64)
-    errors[learning] = image_errors(net, [pairs[i] for i in learning])
-    return errors
+    errors = image_errors(net, [pairs[i] for i in learning])
+    weights = torch.full((len(pairs),), 1.0 / len(pairs), dtype=torch.float64)
+    weights[learning] = sampling_weights(errors, mix, power) * (len(learning) / len(pairs))
+    summary = draw_summary(errors, weights[learning])
+    if len(learning) < len(pairs):
+        summary["anchored_share"] = 1.0 - len(learning) / len(pairs)
+    return weights, summary
 
 
 def _instantiate_group(cfg: DictConfig | None) -> list:
@@ -123,10 +130,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         model.set_teacher(model.net)  # the start, after init_from and bn_estimate
         model.hparams.update({"anchor_scenes": sorted(datamodule.anchor_scenes)})
     if mix:
-        errors = _starting_errors(model.net, datamodule.train_pairs, datamodule.anchor_scenes)
-        weights = sampling_weights(errors, mix, power)
+        weights, summary = _hard_weights(model.net, datamodule.train_pairs, datamodule.anchor_scenes, mix, power)
         datamodule.train_set.set_weights(weights)
-        summary = draw_summary(errors, weights)
         model.hparams.update({"hard_sampling": {"mix": mix, "power": power, **summary}})
         print(
             f"hard sampling: {int(summary['images'])} images, mean error {summary['mean_error']:.4f}; the 1 % read "
