@@ -261,14 +261,18 @@ def _member(checkpoint: str | os.PathLike, spec: Mapping | None) -> tuple[dict, 
     ckpt = torch.load(checkpoint, map_location="cpu", weights_only=True)
     net_spec = {**ckpt["hyper_parameters"]["net"], **dict(spec or {})}
     if spec:
-        try:
-            rebuilt = create_model(**net_spec)
-            rebuilt.load_state_dict(net.state_dict())
-        except (TypeError, ValueError, RuntimeError, KeyError) as exc:
-            message = f"{checkpoint}: the network spec {net_spec} does not fit its weights ({exc})"
-            raise PretrainedError(message) from None
-        net = rebuilt.eval()
+        net = _rebuilt(net, net_spec, checkpoint)
     return net_spec, net, ckpt
+
+
+def _rebuilt(net: nn.Module, net_spec: dict, source: str | os.PathLike) -> nn.Module:
+    """``net``'s weights in a network built from ``net_spec`` (arguments that leave the weights as they are)."""
+    try:
+        rebuilt = create_model(**net_spec)
+        rebuilt.load_state_dict(net.state_dict())
+    except (TypeError, ValueError, RuntimeError, KeyError) as exc:
+        raise PretrainedError(f"{source}: the network spec {net_spec} does not fit its weights ({exc})") from None
+    return rebuilt.eval()
 
 
 def _checkpoint_monitor(ckpt: Mapping) -> dict:
@@ -304,8 +308,8 @@ def export_interpolation(
     ``alpha``), ``exported`` and ``commit``; entries in ``card`` win.
 
     Raises:
-        PretrainedError: ``alpha`` outside [0, 1]; the two are not the same network (spec, weight names or
-            shapes); an unreadable source.
+        PretrainedError: ``alpha`` outside [0, 1]; the two are not the same network (their specs differ); an
+            unreadable source.
     """
     alpha = float(alpha)
     if not 0.0 <= alpha <= 1.0:
@@ -313,10 +317,7 @@ def export_interpolation(
     (spec_a, net_a, info_a), (spec_b, net_b, info_b) = _source(start, spec), _source(end, spec)
     if spec_a != spec_b:
         raise PretrainedError(f"{start} and {end} are not the same network: spec {spec_a} against {spec_b}")
-    state_a, state_b = net_a.state_dict(), net_b.state_dict()
-    shapes = [(k, tuple(v.shape)) for k, v in state_a.items()]
-    if shapes != [(k, tuple(v.shape)) for k, v in state_b.items()]:
-        raise PretrainedError(f"{start} and {end} are not the same network: their weight names or shapes differ")
+    state_a, state_b = net_a.state_dict(), net_b.state_dict()  # one spec: the same names and shapes
     mixed = {
         k: torch.lerp(a, state_b[k].to(a.dtype), alpha) if a.is_floating_point() else a.clone()
         for k, a in state_a.items()
@@ -340,10 +341,5 @@ def _source(source: str | os.PathLike, spec: Mapping | None) -> tuple[dict, nn.M
     net = net_from_card(card, pt)
     net_spec = {**card["spec"], **dict(spec or {})}
     if net_spec != card["spec"]:
-        try:
-            rebuilt = create_model(**net_spec)
-            rebuilt.load_state_dict(net.state_dict())
-        except (TypeError, ValueError, RuntimeError, KeyError) as exc:
-            raise PretrainedError(f"{source}: the network spec {net_spec} does not fit its weights ({exc})") from None
-        net = rebuilt.eval()
+        net = _rebuilt(net, net_spec, source)
     return net_spec, net, {"weights": str(source), "sha256": card["sha256"]}
