@@ -12,7 +12,7 @@ from nriqa.data.patches import TONEMAP, displayed
 from nriqa.inference.pretrained import load_pretrained
 from nriqa.inference.scorer import Scorer
 from nriqa.training.fit import train
-from nriqa.training.hard_sampling import draw_summary, image_errors, sampling_weights
+from nriqa.training.hard_sampling import draw_summary, draw_weights, image_errors, sampling_weights
 
 
 def _datamodule(root, **kwargs) -> NRIQADataModule:
@@ -113,6 +113,30 @@ def test_two_buffer_model_is_given_the_twins(synthetic_dataset):
     pairs = _datamodule(synthetic_dataset, twins=True).train_pairs
     errors = image_errors(load_pretrained("dual_fast"), pairs)
     assert errors.shape == (len(pairs),) and bool(torch.isfinite(errors).all())
+
+
+def test_draw_weights_leave_anchored_families_their_uniform_share(synthetic_dataset):
+    pairs = _datamodule(synthetic_dataset).train_pairs
+    net = load_pretrained("fcnn_fast")
+    # no anchoring: the weights of the starting errors on every image
+    weights, summary = draw_weights(net, pairs, 0.5)
+    torch.testing.assert_close(weights, sampling_weights(image_errors(net, pairs), 0.5))
+    assert summary["images"] == len(pairs) and "anchored_share" not in summary
+    # one family anchored: 1 / N each there, the rest by error among the others
+    anchored = torch.tensor([p.record.scene == "alpha" for p in pairs])
+    n_a = int(anchored.sum())
+    assert 0 < n_a < len(pairs)
+    weights, summary = draw_weights(net, pairs, 1.0, 2.0, anchored={"alpha"})
+    assert float(weights.sum()) == pytest.approx(1.0)
+    torch.testing.assert_close(weights[anchored], torch.full((n_a,), 1 / len(pairs), dtype=torch.float64))
+    learning = [p for p, a in zip(pairs, anchored) if not a]
+    expected = sampling_weights(image_errors(net, learning), 1.0, 2.0) * (len(learning) / len(pairs))
+    torch.testing.assert_close(weights[~anchored], expected)
+    assert summary["images"] == len(learning) and summary["anchored_share"] == pytest.approx(n_a / len(pairs))
+    # every family anchored leaves nothing to draw by error: one line
+    with pytest.raises(ValueError, match="every training image is anchored") as info:
+        draw_weights(net, pairs, 0.5, anchored={p.record.scene for p in pairs})
+    assert "\n" not in str(info.value)
 
 
 def test_fine_tune_draws_by_the_starting_error(tmp_path, synthetic_dataset):

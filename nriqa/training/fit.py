@@ -13,11 +13,10 @@ from pathlib import Path
 
 import hydra
 import lightning as L
-import torch
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
-from nriqa.training.hard_sampling import check_mix, check_power, draw_summary, image_errors, sampling_weights
+from nriqa.training.hard_sampling import check_mix, check_power, draw_weights
 from nriqa.training.last_checkpoint import LastCheckpoint
 from nriqa.training.module import NRIQAModule
 from nriqa.training.warm_start import warm_start
@@ -64,23 +63,6 @@ def exit_on_user_error(fn, *args):
         if message is None:
             raise
         sys.exit(f"error: {message}")
-
-
-def _hard_weights(net, pairs, anchor_scenes, mix: float, power: float) -> tuple[torch.Tensor, dict]:
-    """Draw weights for hard sampling, ``(N,)``, and the summary for the log.
-
-    Images of anchored families learn the starting network's own map, so they carry no error to chase: they keep
-    their uniform share of the draws (``1 / N`` each), and hard sampling (:func:`sampling_weights` of the starting
-    network's errors, :func:`image_errors`) shares out the rest among the learning families' images. Without
-    anchoring that is every image. The summary is over the learning images."""
-    learning = [i for i, p in enumerate(pairs) if p.record.scene not in anchor_scenes]
-    errors = image_errors(net, [pairs[i] for i in learning])
-    weights = torch.full((len(pairs),), 1.0 / len(pairs), dtype=torch.float64)
-    weights[learning] = sampling_weights(errors, mix, power) * (len(learning) / len(pairs))
-    summary = draw_summary(errors, weights[learning])
-    if len(learning) < len(pairs):
-        summary["anchored_share"] = 1.0 - len(learning) / len(pairs)
-    return weights, summary
 
 
 def _instantiate_group(cfg: DictConfig | None) -> list:
@@ -130,7 +112,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         model.set_teacher(model.net)  # the start, after init_from and bn_estimate
         model.hparams.update({"anchor_scenes": sorted(datamodule.anchor_scenes)})
     if mix:
-        weights, summary = _hard_weights(model.net, datamodule.train_pairs, datamodule.anchor_scenes, mix, power)
+        weights, summary = draw_weights(model.net, datamodule.train_pairs, mix, power, datamodule.anchor_scenes)
         datamodule.train_set.set_weights(weights)
         model.hparams.update({"hard_sampling": {"mix": mix, "power": power, **summary}})
         print(

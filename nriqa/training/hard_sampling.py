@@ -7,8 +7,10 @@ are a fraction of a percent of the draws and stay wrong. :func:`image_errors` me
 network on every training image as users run it (the :class:`~nriqa.inference.scorer.Scorer`, package
 tone map, the model's windows) against the image's true mean SSIM; :func:`sampling_weights` turns those
 errors into draw probabilities, a fraction ``mix`` in proportion to the error (or a ``power`` of it) and the
-rest uniform, so every image keeps a share. ``nriqa-train ... hard_sampling.mix=M`` does both after ``init_from``
-(:func:`nriqa.training.fit.train`); :meth:`nriqa.data.patches.TrainPatches.set_weights` draws by them.
+rest uniform, so every image keeps a share. :func:`draw_weights` does both for a training set, leaving the images
+of anchored families (``data.anchor_scenes``, which learn the start's own map) their uniform share;
+``nriqa-train ... hard_sampling.mix=M`` calls it after ``init_from`` (:func:`nriqa.training.fit.train`), and
+:meth:`nriqa.data.patches.TrainPatches.set_weights` draws by its weights.
 
     >>> [round(p, 4) for p in sampling_weights(torch.tensor([0.0, 0.1, 0.3]), 0.5).tolist()]
     [0.1667, 0.2917, 0.5417]
@@ -16,7 +18,7 @@ rest uniform, so every image keeps a share. ``nriqa-train ... hard_sampling.mix=
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 import torch
 from torch import Tensor, nn
@@ -25,7 +27,7 @@ from nriqa.data.images import ImagePair
 from nriqa.data.patches import TONEMAP, displayed
 from nriqa.data.targets import compute_target
 
-__all__ = ["check_mix", "check_power", "draw_summary", "image_errors", "sampling_weights"]
+__all__ = ["check_mix", "check_power", "draw_summary", "draw_weights", "image_errors", "sampling_weights"]
 
 
 @torch.no_grad()
@@ -112,3 +114,30 @@ def draw_summary(errors: Tensor, weights: Tensor) -> dict[str, float]:
         "worst_1pct_error": float(e[worst].mean()),
         "worst_1pct_share": float(w[worst].sum() / w.sum()),
     }
+
+
+def draw_weights(
+    net: nn.Module, pairs: Sequence[ImagePair], mix: float, power: float = 1.0, anchored: Collection[str] = ()
+) -> tuple[Tensor, dict[str, float]]:
+    """Draw probabilities for a training set, ``(N,)`` float64 summing to 1, and the summary for the log.
+
+    Images of the ``anchored`` families learn the starting network's own map, so they carry no error to chase:
+    each keeps its uniform share ``1 / N`` of the draws, whatever ``mix``, and the rest is shared out among the
+    other (learning) images by :func:`sampling_weights` of ``net``'s errors on them (:func:`image_errors`).
+    Without anchoring that is every image. The summary (:func:`draw_summary`) is over the learning images, with
+    ``anchored_share`` where some are anchored.
+
+    Raises:
+        ValueError: ``mix`` or ``power`` out of range, or no learning image (every family anchored).
+    """
+    mix, power = check_mix(mix), check_power(power)
+    learning = [i for i, p in enumerate(pairs) if p.record.scene not in anchored]
+    if not learning:
+        raise ValueError("hard sampling draws by the error of learning images, but every training image is anchored")
+    errors = image_errors(net, [pairs[i] for i in learning])
+    weights = torch.full((len(pairs),), 1.0 / len(pairs), dtype=torch.float64)
+    weights[learning] = sampling_weights(errors, mix, power) * (len(learning) / len(pairs))
+    summary = draw_summary(errors, weights[learning])
+    if len(learning) < len(pairs):
+        summary["anchored_share"] = 1.0 - len(learning) / len(pairs)
+    return weights, summary
