@@ -36,18 +36,19 @@ def check_writable(out: Path) -> None:
         fail(f"output dir {out} is not writable ({exc.strerror}); choose another with out=DIR")
 
 
-def check_pixel_filter(out: Path, jobs: list[Job]) -> None:
-    """Refuse to render over images of another pixel filter: they would all be rendered again."""
+def check_film(out: Path, jobs: list[Job]) -> None:
+    """Refuse to render over images of another pixel filter or zoom: they would all be rendered again."""
     for job in jobs:
         for task in job.tasks:
-            rec = load_record(out, task, pixel_filter=None)
+            rec = load_record(out, task, pixel_filter=None, zoom=None)
             if rec is None:
                 continue
-            if rec.pixel_filter != job.pixel_filter:
-                fail(
-                    f"{out} holds images rendered with pixel_filter={rec.pixel_filter}, not {job.pixel_filter}; "
-                    f"pass pixel_filter={rec.pixel_filter} to resume it, or another out=DIR"
-                )
+            for key, had, wanted in (("pixel_filter", rec.pixel_filter, job.pixel_filter), ("zoom", rec.zoom, job.zoom)):
+                if had != wanted:
+                    fail(
+                        f"{out} holds images rendered with {key}={had}, not {wanted}; "
+                        f"pass {key}={had} to resume it, or another out=DIR"
+                    )
             return
 
 
@@ -76,6 +77,7 @@ def main(cfg: DictConfig) -> None:
             reference_factor=int(cfg.reference_factor),
             algorithms=None if cfg.algorithms is None else list(cfg.algorithms),
             pixel_filter=str(cfg.pixel_filter),
+            zoom=cfg.zoom,
         )
     except PlanError as exc:
         fail(str(exc))
@@ -84,11 +86,11 @@ def main(cfg: DictConfig) -> None:
     if cfg.executor.name not in EXECUTORS:
         fail(f"executor.name={cfg.executor.name}: choose one of {', '.join(EXECUTORS)} (executor=local|dask)")
     check_writable(out)
-    check_pixel_filter(out, jobs)
+    check_film(out, jobs)
     swept = sweep_partials(out)
     if swept:
         log.info("removed %d partial files left by an interrupted run", swept)
-    pending = [j for j in jobs if any(load_record(out, t, j.pixel_filter) is None for t in j.tasks)]
+    pending = [j for j in jobs if any(load_record(out, t, j.pixel_filter, j.zoom) is None for t in j.tasks)]
     n_images = sum(len(j.tasks) for j in jobs)
     log.info("%s: %d images in %d jobs, %d jobs to do", out, n_images, len(jobs), len(pending))
     start = time.perf_counter()
@@ -106,7 +108,7 @@ def main(cfg: DictConfig) -> None:
         swept = sweep_partials(out)
         if swept:
             log.info("removed %d partial files left by workers that died", swept)
-    records = [load_record(out, t, j.pixel_filter) for j in jobs for t in j.tasks]
+    records = [load_record(out, t, j.pixel_filter, j.zoom) for j in jobs for t in j.tasks]
     missing = [j.scene for j, r in zip([j for j in jobs for _ in j.tasks], records) if r is None]
     if missing:
         fail(f"{len(missing)} images missing after rendering (scenes {sorted(set(missing))}); rerun to finish them")

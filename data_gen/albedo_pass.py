@@ -58,6 +58,7 @@ def albedo_scene(rec: Record, seed: int, spp: int = ALBEDO_SPP) -> dict:
         spec.max_depth,
         (),
         rec.pixel_filter,
+        rec.zoom,
     )
     task = ImageTask("albedo", "albedo", spp, 0, ALBEDO_FILE, rec.reference)
     scene = without_null_surfaces(scene_dict(job, task))

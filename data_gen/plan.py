@@ -57,6 +57,7 @@ class Job:
     max_depth: int
     tasks: tuple[ImageTask, ...]
     pixel_filter: str = "box"
+    zoom: int = 1
 
     @property
     def cost(self) -> int:
@@ -81,6 +82,7 @@ def plan_dataset(
     algorithms: list[str] | None = None,
     first_variant: int = 0,
     pixel_filter: str = "box",
+    zoom: int = 1,
 ) -> list[Job]:
     """All jobs of a dataset, variant by variant, longest first within a variant. ``None`` options
     take each scene's own declaration.
@@ -93,6 +95,8 @@ def plan_dataset(
     skips the variants below it: ``first_variant=46, variants=48`` plans variants 46 and 47 alone, the
     same images a full run would render for them (a fresh test set beside a training set).
     ``pixel_filter`` is the film's reconstruction filter (one of ``PIXEL_FILTERS``), the reference's too.
+    ``zoom`` > 1 renders each image as a ``resolution`` crop of a film ``zoom`` times as wide and high (one crop
+    per variant, its reference's too): pixels as fine as a ``zoom`` times larger render's, at the crop's cost.
     """
     if variants < 1:
         raise PlanError(f"variants={variants}: need at least 1 variant per scene")
@@ -107,6 +111,8 @@ def plan_dataset(
         )
     if resolution is not None and (len(resolution) != 2 or min(resolution) < 8):
         raise PlanError(f"resolution={list(resolution)}: give [width, height], each >= 8")
+    if isinstance(zoom, bool) or not isinstance(zoom, int) or zoom < 1:
+        raise PlanError(f"zoom={zoom}: give a whole number >= 1 (1 renders the whole view)")
     if pixel_filter not in PIXEL_FILTERS:
         raise PlanError(f"pixel_filter={pixel_filter}: choose one of {', '.join(PIXEL_FILTERS)}")
     if not scenes:
@@ -137,7 +143,7 @@ def plan_dataset(
                 ref,
                 ref,
             )
-            jobs.append(Job(name, v, vseed, spec.reference_algorithm, res, spec.max_depth, (ref_task,), pixel_filter))
+            jobs.append(Job(name, v, vseed, spec.reference_algorithm, res, spec.max_depth, (ref_task,), pixel_filter, zoom))
             for alg_name in chosen:
                 alg = get_algorithm(alg_name)
                 tasks = []
@@ -148,5 +154,5 @@ def plan_dataset(
                     ids = (f"{stem}_a", f"{stem}_b")
                     for role, own, other in (("test", ids[0], ids[1]), ("twin", ids[1], ids[0])):
                         tasks.append(ImageTask(own, role, spp, derive_seed(seed, own), own + ".exr", ref, other))
-                jobs.append(Job(name, v, vseed, alg_name, res, spec.max_depth, tuple(tasks), pixel_filter))
+                jobs.append(Job(name, v, vseed, alg_name, res, spec.max_depth, tuple(tasks), pixel_filter, zoom))
     return sorted(jobs, key=lambda j: (j.variant, -j.cost))

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from data_gen.algorithms import get_algorithm
-from data_gen.plan import ImageTask, Job
+from data_gen.plan import ImageTask, Job, derive_seed
 from data_gen.scenes import get_scene
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.exr import write_exr
@@ -28,9 +28,11 @@ def record_path(root: Path, task: ImageTask) -> Path:
     return root / (task.path + ".json")
 
 
-def load_record(root: Path, task: ImageTask, pixel_filter: str | None = "box") -> Record | None:
+def load_record(
+    root: Path, task: ImageTask, pixel_filter: str | None = "box", zoom: int | None = 1
+) -> Record | None:
     """The finished record of ``task``, or ``None`` if it has not been rendered completely (or was
-    rendered through another pixel filter than ``pixel_filter``; ``None``: through any)."""
+    rendered through another pixel filter than ``pixel_filter``, or at another ``zoom``; ``None``: any)."""
     rec_path = record_path(root, task)
     if not rec_path.is_file() or not (root / task.path).is_file():
         return None
@@ -43,6 +45,8 @@ def load_record(root: Path, task: ImageTask, pixel_filter: str | None = "box") -
         return None
     if pixel_filter is not None and rec.pixel_filter != pixel_filter:
         return None
+    if zoom is not None and rec.zoom != zoom:
+        return None
     return rec
 
 
@@ -54,14 +58,43 @@ def samples_per_pass(spp: int, pixels: int) -> int:
     return per_pass
 
 
+def crop_offset(variant_seed: int, zoom: int, resolution: tuple[int, int]) -> tuple[int, int]:
+    """Where a ``zoom``-times film's crop of ``resolution`` lies: the same for every image of a variant
+    (its reference too), drawn from the variant's seed; ``(0, 0)`` at zoom 1."""
+    if zoom == 1:
+        return 0, 0
+    rng = np.random.default_rng(derive_seed(variant_seed, "crop", zoom))
+    width, height = resolution
+    return int(rng.integers(0, width * (zoom - 1) + 1)), int(rng.integers(0, height * (zoom - 1) + 1))
+
+
+def film_dict(job: Job) -> dict:
+    """The film of a job's images: ``resolution`` pixels through ``pixel_filter``; at ``zoom`` > 1 the crop
+    (:func:`crop_offset`) of a film ``zoom`` times as wide and high, so each pixel sees ``1/zoom^2`` of the area
+    a pixel of the whole view would, at the cost of the crop's pixels alone."""
+    width, height = job.resolution
+    # The box filter (the default) keeps each pixel's noise independent of its neighbours'.
+    film = {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": job.pixel_filter}}
+    if job.zoom > 1:
+        x, y = crop_offset(job.variant_seed, job.zoom, job.resolution)
+        film.update(
+            width=width * job.zoom,
+            height=height * job.zoom,
+            crop_offset_x=x,
+            crop_offset_y=y,
+            crop_width=width,
+            crop_height=height,
+        )
+    return film
+
+
 def scene_dict(job: Job, task: ImageTask) -> dict:
     """The full Mitsuba scene of one image: the variant's scene plus film, sampler, integrator."""
     spec = get_scene(job.scene)
     alg = get_algorithm(job.algorithm)
     scene = spec.build(np.random.default_rng(job.variant_seed))
     width, height = job.resolution
-    # The box filter (the default) keeps each pixel's noise independent of its neighbours'.
-    film = {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": job.pixel_filter}}
+    film = film_dict(job)
     scene["sensor"]["film"] = film
     scene["sensor"]["sampler"] = alg.sampler_dict(task.spp)
     per_pass = samples_per_pass(task.spp, width * height) if not alg.square_spp else None
@@ -121,6 +154,7 @@ def render_task(root: Path, job: Job, task: ImageTask, backend: str) -> Record:
         twin=task.twin,
         nonfinite=nonfinite,
         pixel_filter=job.pixel_filter,
+        zoom=job.zoom,
     )
     write_text_atomic(record_path(root, task), json.dumps(rec.to_dict()) + "\n")
     return rec
@@ -131,7 +165,7 @@ def run_job(root: str, job: Job, backend: str) -> tuple[int, int]:
     root_path = Path(root)
     rendered = skipped = 0
     for task in job.tasks:
-        if load_record(root_path, task, job.pixel_filter) is not None:
+        if load_record(root_path, task, job.pixel_filter, job.zoom) is not None:
             skipped += 1
             continue
         render_task(root_path, job, task, backend)

@@ -93,6 +93,8 @@ def test_square_samplers_take_only_powers_of_four():
         ({"first_variant": -1}, "0 <= first_variant < variants"),
         ({"algorithms": ["path_magic"]}, "unknown algorithm"),
         ({"pixel_filter": "gauss"}, "pixel_filter=gauss: choose one of box, tent, gaussian"),
+        ({"zoom": 0}, "zoom=0: give a whole number >= 1"),
+        ({"zoom": 1.5}, "zoom=1.5: give a whole number >= 1"),
     ],
 )
 def test_plan_rejects_bad_configuration(kwargs, message):
@@ -436,6 +438,50 @@ def test_a_pixel_filter_spreads_the_noise_and_its_dataset_keeps_to_it(tiny, tmp_
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "rendered with pixel_filter=gaussian, not box" in lines[0], proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.exr")} == before
+
+
+def test_a_zoomed_image_is_the_crop_of_the_whole_view_at_its_pixel_size():
+    """``zoom=2``: a 16x16 crop of a 32x32 film, where :func:`crop_offset` puts it, the same for every image
+    of the variant; it matches that region of the whole 32x32 render (within its noise), not another."""
+    mi = pytest.importorskip("mitsuba")
+    from data_gen.plan import ImageTask, Job
+    from data_gen.render import crop_offset, scene_dict
+
+    mi.set_variant(backend.select_backend("auto"))
+    task = ImageTask("x", "reference", 256, 3, "x.exr", "x.exr")
+    whole = Job("cornell", 0, 7, "path_independent", (32, 32), 6, ())
+    crop = Job("cornell", 0, 7, "path_independent", (16, 16), 6, (), "box", 2)
+    assert crop_offset(7, 2, (16, 16)) == crop_offset(7, 2, (16, 16)) != (0, 0)
+    assert crop_offset(7, 1, (16, 16)) == (0, 0)
+    x, y = crop_offset(7, 2, (16, 16))
+    assert 0 <= x <= 16 and 0 <= y <= 16
+    full = np.array(mi.render(mi.load_dict(scene_dict(whole, task)), seed=1))
+    part = np.array(mi.render(mi.load_dict(scene_dict(crop, task)), seed=2))
+    assert full.shape == (32, 32, 3) and part.shape == (16, 16, 3)
+    here = np.abs(full[y : y + 16, x : x + 16] - part).mean()
+    elsewhere = min(
+        np.abs(full[j : j + 16, i : i + 16] - part).mean() for i in (0, 16) for j in (0, 16) if (i, j) != (x, y)
+    )
+    assert here < 0.1 * full.mean() and here < 0.5 * elsewhere, (here, elsewhere, full.mean())
+
+
+def test_a_zoomed_dataset_says_so_and_keeps_to_it(tmp_path):
+    """``zoom=2``: images of the preset's size, every record with ``zoom`` 2, each algorithm converging to its
+    reference; a rerun at another zoom is refused in one line and touches nothing."""
+    out = tmp_path / "zoom"
+    args = ("preset=tiny", "scenes=[cornell]", "algorithms=[path_independent]", "jobs=1", f"out={out}")
+    proc = run_data_gen(*args, "zoom=2")
+    assert proc.returncode == 0, proc.stderr
+    records, meta = read_manifest(out)
+    assert {r.zoom for r in records} == {2} and {(r.width, r.height) for r in records} == {(32, 32)}
+    assert meta["config"]["zoom"] == 2
+    assert all(v["converged"] for v in dataset_verdicts(out, records))
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*.exr")}
+    proc = run_data_gen(*args)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "rendered with zoom=2, not 1" in lines[0], proc.stderr
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*.exr")} == before
 
 

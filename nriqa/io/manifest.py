@@ -55,6 +55,7 @@ class Record:
     twin: str | None = None
     nonfinite: int = 0
     pixel_filter: str = "box"  # the film's reconstruction filter (data_gen's pixel_filter)
+    zoom: int = 1  # > 1: the crop of a film zoom times as wide and high (data_gen's zoom)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
