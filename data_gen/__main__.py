@@ -43,7 +43,8 @@ def check_film(out: Path, jobs: list[Job]) -> None:
             rec = load_record(out, task, pixel_filter=None, zoom=None)
             if rec is None:
                 continue
-            for key, had, wanted in (("pixel_filter", rec.pixel_filter, job.pixel_filter), ("zoom", rec.zoom, job.zoom)):
+            checks = (("pixel_filter", rec.pixel_filter, job.pixel_filter), ("zoom", rec.zoom, job.zoom))
+            for key, had, wanted in checks:
                 if had != wanted:
                     fail(
                         f"{out} holds images rendered with {key}={had}, not {wanted}; "

@@ -143,7 +143,8 @@ def plan_dataset(
                 ref,
                 ref,
             )
-            jobs.append(Job(name, v, vseed, spec.reference_algorithm, res, spec.max_depth, (ref_task,), pixel_filter, zoom))
+            ref_alg = spec.reference_algorithm
+            jobs.append(Job(name, v, vseed, ref_alg, res, spec.max_depth, (ref_task,), pixel_filter, zoom))
             for alg_name in chosen:
                 alg = get_algorithm(alg_name)
                 tasks = []

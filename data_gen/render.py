@@ -28,9 +28,7 @@ def record_path(root: Path, task: ImageTask) -> Path:
     return root / (task.path + ".json")
 
 
-def load_record(
-    root: Path, task: ImageTask, pixel_filter: str | None = "box", zoom: int | None = 1
-) -> Record | None:
+def load_record(root: Path, task: ImageTask, pixel_filter: str | None = "box", zoom: int | None = 1) -> Record | None:
     """The finished record of ``task``, or ``None`` if it has not been rendered completely (or was
     rendered through another pixel filter than ``pixel_filter``, or at another ``zoom``; ``None``: any)."""
     rec_path = record_path(root, task)

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import pytest
 import torch
+from conftest import make_dataset
 from test_batched_patches import make_dm
 from test_train import compose_cfg
 
+from nriqa.data.anchors import Anchors
 from nriqa.losses import create_loss
 from nriqa.training.fit import train
 from nriqa.training.module import NRIQAModule
@@ -32,6 +34,40 @@ def test_anchor_scenes_must_be_some_of_the_training_families(synthetic_dataset, 
     with pytest.raises(ValueError, match=message) as info:
         make_dm(synthetic_dataset, anchor_scenes=scenes)
     assert "\n" not in str(info.value)
+
+
+@pytest.fixture(scope="module")
+def second_dataset(tmp_path_factory):
+    """Another dataset of the same families (another render of them, as data_gen's zoom crops are)."""
+    return make_dataset(tmp_path_factory.mktemp("second"))
+
+
+def test_patches_of_an_anchored_dataset_root_carry_their_flag_whatever_their_family(synthetic_dataset, second_dataset):
+    roots = [str(synthetic_dataset), str(second_dataset)]
+    dm = make_dm(roots, anchor_data=[str(second_dataset) + "/"])  # a trailing slash names the same root
+    ds = dm.train_set
+    flags = [bool(item[2]) for item in ds.__getitems__(list(range(32)))]
+    under = [ds.draw(k).pair.record.path.startswith(str(second_dataset)) for k in range(32)]
+    assert flags == under and 0 < sum(flags) < 32
+    assert {ds.draw(k).pair.record.scene for k in range(32) if flags[k]} == {"alpha", "gamma"}
+    assert dm.anchors.describe() == {"anchor_scenes": [], "anchor_data": [str(second_dataset) + "/"]}
+    # families and roots together: either makes an image anchored
+    both = Anchors(frozenset({"alpha"}), (str(second_dataset),))
+    assert [both(p.record) for p in dm.train_pairs] == [
+        p.record.scene == "alpha" or p.record.path.startswith(str(second_dataset)) for p in dm.train_pairs
+    ]
+
+
+def test_anchor_data_must_be_one_of_the_roots_and_leave_something_to_learn(synthetic_dataset, second_dataset, tmp_path):
+    roots = [str(synthetic_dataset), str(second_dataset)]
+    with pytest.raises(ValueError, match="holds none of the training images") as info:
+        make_dm(roots, anchor_data=[str(tmp_path)])
+    assert "\n" not in str(info.value)
+    with pytest.raises(ValueError, match="every training image is anchored") as info:
+        make_dm(roots, anchor_data=roots)
+    assert "\n" not in str(info.value)
+    with pytest.raises(ValueError, match="every training image is anchored"):
+        make_dm(roots, anchor_data=[roots[0]], anchor_scenes=["alpha", "gamma"])
 
 
 def _module() -> NRIQAModule:

@@ -7,6 +7,7 @@ import torch
 from test_train import compose_cfg
 
 from nriqa.core.ssim import ssim_map
+from nriqa.data.anchors import Anchors
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import TONEMAP, displayed
 from nriqa.inference.pretrained import load_pretrained
@@ -126,7 +127,7 @@ def test_draw_weights_leave_anchored_families_their_uniform_share(synthetic_data
     anchored = torch.tensor([p.record.scene == "alpha" for p in pairs])
     n_a = int(anchored.sum())
     assert 0 < n_a < len(pairs)
-    weights, summary = draw_weights(net, pairs, 1.0, 2.0, anchored={"alpha"})
+    weights, summary = draw_weights(net, pairs, 1.0, 2.0, anchored=Anchors(frozenset({"alpha"})))
     assert float(weights.sum()) == pytest.approx(1.0)
     torch.testing.assert_close(weights[anchored], torch.full((n_a,), 1 / len(pairs), dtype=torch.float64))
     learning = [p for p, a in zip(pairs, anchored) if not a]
@@ -135,7 +136,7 @@ def test_draw_weights_leave_anchored_families_their_uniform_share(synthetic_data
     assert summary["images"] == len(learning) and summary["anchored_share"] == pytest.approx(n_a / len(pairs))
     # every family anchored leaves nothing to draw by error: one line
     with pytest.raises(ValueError, match="every training image is anchored") as info:
-        draw_weights(net, pairs, 0.5, anchored={p.record.scene for p in pairs})
+        draw_weights(net, pairs, 0.5, anchored=Anchors(frozenset(p.record.scene for p in pairs)))
     assert "\n" not in str(info.value)
 
 

@@ -11,6 +11,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
+from nriqa.data.anchors import Anchors
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
@@ -78,6 +79,9 @@ class NRIQADataModule(L.LightningDataModule):
             their SSIM target (with ``init_from``: :class:`nriqa.training.module.NRIQAModule`'s teacher),
             so a fine-tune on a few scenes of them keeps what the start learnt from many while the other
             families teach it something new; empty (the default): every patch learns its target.
+        anchor_data: dataset roots (some of ``data_dir``) whose every training patch learns the starting
+            network's map, whatever its family: keep the start's reading of one set while another set of the
+            same families (e.g. data_gen's ``zoom`` crops) teaches it (:mod:`nriqa.data.anchors`).
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -108,6 +112,7 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         anchor_scenes: Sequence[str] = (),
+        anchor_data: Sequence[str | os.PathLike] = (),
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -126,6 +131,7 @@ class NRIQADataModule(L.LightningDataModule):
         display = None if display is None else {k: float(v) for k, v in dict(display).items()}
         scenes = None if scenes is None else [str(s) for s in scenes]
         anchor_scenes = [str(s) for s in anchor_scenes or ()]
+        anchor_data = [str(d) for d in anchor_data or ()]
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
@@ -137,7 +143,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.data_dir = data_dir
         self.val_scene = val_scene
         self.scenes = scenes
-        self.anchor_scenes = frozenset(anchor_scenes)
+        self.anchors = Anchors(frozenset(anchor_scenes), tuple(anchor_data))
         self.patch_size = patch_size
         self.target = target
         self.batch_size = batch_size
@@ -183,8 +189,9 @@ class NRIQADataModule(L.LightningDataModule):
             albedo_lines=self.albedo_lines,
             pixel_filter_p=self.pixel_filter_p,
             pixel_filter_sigma=self.pixel_filter_sigma,
-            anchor_scenes=self.anchor_scenes,
+            anchors=self.anchors,
         )
+        self.anchors = self.train_set.anchors
         if self.val_pairs:
             self.val_set = fixed_patches(
                 self.val_pairs,

@@ -17,6 +17,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
+from nriqa.data.anchors import NO_ANCHORS, Anchors, make_anchors
 from nriqa.data.pixel_filter import (
     SIGMA_RANGE,
     apply_pixel_filter,
@@ -98,8 +99,8 @@ class TrainPatches(Dataset):
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
-    the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchor_scenes`` each item
-    is ``(input, target, anchored)``, ``anchored`` true where the image's scene family is one of them: the
+    the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchors`` each item
+    is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`): the
     training module then learns the starting network's map there instead of the target
     (:class:`nriqa.training.module.NRIQAModule`). Any ``k >= 0`` is valid; ``len`` is the number of
     items per epoch.
@@ -121,11 +122,11 @@ class TrainPatches(Dataset):
         albedo_lines: float = 0.0,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: tuple[float, float] = SIGMA_RANGE,
-        anchor_scenes: frozenset[str] = frozenset(),
+        anchors: Anchors = NO_ANCHORS,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
-        self.anchor_scenes = check_anchor_scenes(anchor_scenes, pairs)
+        self.anchors = make_anchors(pairs, anchors.scenes, anchors.roots)
         check_patch_size(pairs, patch_size)
         check_pairs(pairs, display is not None, twins, albedo_pass)
         self.pairs = pairs
@@ -210,24 +211,10 @@ class TrainPatches(Dataset):
         noisy, ref = members[0], members[1]
         target = compute_target(self.target, noisy, ref)
         inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
-        if self.anchor_scenes:
-            anchored = [torch.tensor(d.pair.record.scene in self.anchor_scenes) for d in draws]
+        if self.anchors:
+            anchored = [torch.tensor(self.anchors(d.pair.record)) for d in draws]
             return [(inputs[i].contiguous(), target[i], anchored[i]) for i in range(len(draws))]
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
-
-
-def check_anchor_scenes(scenes, pairs: list[ImagePair]) -> frozenset[str]:
-    """``scenes`` as a frozenset, each a family of the training ``pairs``; all of them is refused (nothing to learn)."""
-    scenes = frozenset(str(s) for s in scenes or ())
-    known = {p.record.scene for p in pairs}
-    unknown = sorted(scenes - known)
-    if unknown:
-        raise ValueError(
-            f"data.anchor_scenes: {', '.join(unknown)} not among the training families ({', '.join(sorted(known))})"
-        )
-    if scenes and scenes == known:
-        raise ValueError("data.anchor_scenes names every training family: leave at least one to learn from its targets")
-    return scenes
 
 
 @dataclasses.dataclass(frozen=True)

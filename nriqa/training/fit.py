@@ -106,13 +106,15 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.get("bn_estimate"):
         used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), int(cfg.bn_estimate))
         model.hparams.update({"bn_estimate": used})
-    if datamodule.anchor_scenes:
+    if datamodule.anchors:
         if not cfg.get("init_from"):
-            raise ValueError("data.anchor_scenes learns the starting network's map there: it needs init_from")
+            raise ValueError(
+                "data.anchor_scenes / data.anchor_data learn the starting network's map there: the run needs init_from"
+            )
         model.set_teacher(model.net)  # the start, after init_from and bn_estimate
-        model.hparams.update({"anchor_scenes": sorted(datamodule.anchor_scenes)})
+        model.hparams.update(datamodule.anchors.describe())
     if mix:
-        weights, summary = draw_weights(model.net, datamodule.train_pairs, mix, power, datamodule.anchor_scenes)
+        weights, summary = draw_weights(model.net, datamodule.train_pairs, mix, power, datamodule.anchors)
         datamodule.train_set.set_weights(weights)
         model.hparams.update({"hard_sampling": {"mix": mix, "power": power, **summary}})
         print(

@@ -8,7 +8,7 @@ network on every training image as users run it (the :class:`~nriqa.inference.sc
 tone map, the model's windows) against the image's true mean SSIM; :func:`sampling_weights` turns those
 errors into draw probabilities, a fraction ``mix`` in proportion to the error (or a ``power`` of it) and the
 rest uniform, so every image keeps a share. :func:`draw_weights` does both for a training set, leaving the images
-of anchored families (``data.anchor_scenes``, which learn the start's own map) their uniform share;
+of anchored images (``data.anchor_scenes``, ``data.anchor_data``, which learn the start's own map) their uniform share;
 ``nriqa-train ... hard_sampling.mix=M`` calls it after ``init_from`` (:func:`nriqa.training.fit.train`), and
 :meth:`nriqa.data.patches.TrainPatches.set_weights` draws by its weights.
 
@@ -18,11 +18,12 @@ of anchored families (``data.anchor_scenes``, which learn the start's own map) t
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Sequence
 
 import torch
 from torch import Tensor, nn
 
+from nriqa.data.anchors import NO_ANCHORS, Anchors
 from nriqa.data.images import ImagePair
 from nriqa.data.patches import TONEMAP, displayed
 from nriqa.data.targets import compute_target
@@ -117,21 +118,22 @@ def draw_summary(errors: Tensor, weights: Tensor) -> dict[str, float]:
 
 
 def draw_weights(
-    net: nn.Module, pairs: Sequence[ImagePair], mix: float, power: float = 1.0, anchored: Collection[str] = ()
+    net: nn.Module, pairs: Sequence[ImagePair], mix: float, power: float = 1.0, anchored: Anchors = NO_ANCHORS
 ) -> tuple[Tensor, dict[str, float]]:
     """Draw probabilities for a training set, ``(N,)`` float64 summing to 1, and the summary for the log.
 
-    Images of the ``anchored`` families learn the starting network's own map, so they carry no error to chase:
+    The ``anchored`` images (:mod:`nriqa.data.anchors`) learn the starting network's own map, so they carry no
+    error to chase:
     each keeps its uniform share ``1 / N`` of the draws, whatever ``mix``, and the rest is shared out among the
     other (learning) images by :func:`sampling_weights` of ``net``'s errors on them (:func:`image_errors`).
     Without anchoring that is every image. The summary (:func:`draw_summary`) is over the learning images, with
     ``anchored_share`` where some are anchored.
 
     Raises:
-        ValueError: ``mix`` or ``power`` out of range, or no learning image (every family anchored).
+        ValueError: ``mix`` or ``power`` out of range, or no learning image (every image anchored).
     """
     mix, power = check_mix(mix), check_power(power)
-    learning = [i for i, p in enumerate(pairs) if p.record.scene not in anchored]
+    learning = [i for i, p in enumerate(pairs) if not anchored(p.record)]
     if not learning:
         raise ValueError("hard sampling draws by the error of learning images, but every training image is anchored")
     errors = image_errors(net, [pairs[i] for i in learning])

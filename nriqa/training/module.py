@@ -46,7 +46,8 @@ class NRIQAModule(L.LightningModule):
     :func:`nriqa.core.sampling.metric_samples`, capped at ``max_metric_samples`` evenly spaced samples).
 
     Anchoring (:meth:`set_teacher`): training items ``(input, target, anchored)`` learn the teacher's map
-    where ``anchored`` is true (``data.anchor_scenes``) and their target elsewhere, so a fine-tune keeps
+    where ``anchored`` is true (``data.anchor_scenes``, ``data.anchor_data``) and their target elsewhere, so a
+    fine-tune keeps
     the starting network's reading of families it learnt from many more scenes than the fine-tune holds.
     The teacher is frozen, runs in eval mode, and is neither trained nor saved in checkpoints.
 
@@ -130,7 +131,9 @@ class NRIQAModule(L.LightningModule):
     def anchored_target(self, x: Tensor, y: Tensor, anchored: Tensor) -> Tensor:
         """``y`` with the teacher's map of ``x`` where ``anchored`` (one flag per item)."""
         if not self._teacher:
-            raise RuntimeError("anchored training items need a teacher: set data.anchor_scenes with init_from")
+            raise RuntimeError(
+                "anchored training items need a teacher: set data.anchor_scenes or data.anchor_data with init_from"
+            )
         if not bool(anchored.any()):
             return y
         teacher = self._teacher[0]

@@ -10,8 +10,8 @@ exactly its own gradient, and Adam's update is per element, so each fold follows
 (tested against the per-fold training of ``nriqa-crossval``: the same patches, initial weights and updates).
 
 What it does not do, and refuses with one line: hard-example sampling, ``bn_estimate``, ``freeze_bn``,
-``data.anchor_scenes``, several devices, gradient clipping or accumulation, another precision, a scheduler
-that watches a metric.
+``data.anchor_scenes`` or ``data.anchor_data``, several devices, gradient clipping or accumulation, another
+precision, a scheduler that watches a metric.
 It validates nothing while training (the fold tables use each fold's end of training, ``last.ckpt``, the
 checkpoint ``nriqa-evaluate --crossval`` scores with anyway), and keeps ``trainer.max_epochs`` and
 ``trainer.max_time`` as Lightning does. A fold whose loss turns non-finite stops there (its weights as they
@@ -181,6 +181,8 @@ def check_supported(cfg: DictConfig) -> None:
         why.append("freeze_bn")
     if (cfg.get("data") or {}).get("anchor_scenes"):
         why.append("data.anchor_scenes")
+    if (cfg.get("data") or {}).get("anchor_data"):
+        why.append("data.anchor_data")
     trainer = cfg.trainer
     if str(trainer.get("devices", 1)) not in ("1", "auto") or trainer.get("strategy") not in (None, "auto"):
         why.append("several devices")
