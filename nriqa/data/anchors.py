@@ -12,14 +12,14 @@ crops, teaches it).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
-from collections.abc import Sequence
 
 from nriqa.data.images import ImagePair
 from nriqa.io.manifest import Record
 
 
-def _root_key(path: str | os.PathLike) -> str:
+def _path_key(path: str | os.PathLike) -> str:
     return os.path.normpath(os.path.abspath(path))
 
 
@@ -33,13 +33,20 @@ class Anchors:
     def __bool__(self) -> bool:
         return bool(self.scenes or self.roots)
 
+    @functools.cached_property
+    def _root_prefixes(self) -> tuple[str, ...]:
+        """Each root as an absolute, normalised directory prefix, worked out once (images are tested per draw)."""
+        return tuple(_path_key(root) + os.sep for root in self.roots)
+
     def __call__(self, record: Record) -> bool:
         """Whether ``record`` (its path prefixed with its root, as :func:`nriqa.io.manifest.read_datasets`
         gives it) is anchored."""
         if record.scene in self.scenes:
             return True
-        path = _root_key(record.path)
-        return any(path.startswith(_root_key(root) + os.sep) for root in self.roots)
+        if not self.roots:
+            return False
+        path = _path_key(record.path)
+        return any(path.startswith(prefix) for prefix in self._root_prefixes)
 
     def describe(self) -> dict[str, list[str]]:
         """The settings, for a checkpoint's hyper-parameters."""
@@ -52,16 +59,13 @@ class Anchors:
 NO_ANCHORS = Anchors()
 
 
-def make_anchors(
-    pairs: list[ImagePair], scenes: Sequence[str] = (), roots: Sequence[str | os.PathLike] = ()
-) -> Anchors:
-    """The anchors of the training ``pairs``, checked: each family one of theirs, each root one they were
+def check_anchors(anchors: Anchors, pairs: list[ImagePair]) -> Anchors:
+    """``anchors``, checked against the training ``pairs``: each family one of theirs, each root one they were
     read from, and at least one image left to learn from its target.
 
     Raises:
         ValueError: one line saying which setting is wrong and what it names.
     """
-    anchors = Anchors(frozenset(str(s) for s in scenes or ()), tuple(str(r) for r in roots or ()))
     known = {p.record.scene for p in pairs}
     unknown = sorted(anchors.scenes - known)
     if unknown:
@@ -69,7 +73,8 @@ def make_anchors(
             f"data.anchor_scenes: {', '.join(unknown)} not among the training families ({', '.join(sorted(known))})"
         )
     for root in anchors.roots:
-        if not any(Anchors(roots=(root,))(p.record) for p in pairs):
+        one_root = Anchors(roots=(root,))
+        if not any(one_root(p.record) for p in pairs):
             raise ValueError(f"data.anchor_data: {root} holds none of the training images; name one of paths.data_dir")
     if anchors and all(anchors(p.record) for p in pairs):
         what = "data.anchor_scenes names every training family" if not anchors.roots else "every training image is anchored"

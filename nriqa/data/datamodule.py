@@ -191,7 +191,6 @@ class NRIQADataModule(L.LightningDataModule):
             pixel_filter_sigma=self.pixel_filter_sigma,
             anchors=self.anchors,
         )
-        self.anchors = self.train_set.anchors
         if self.val_pairs:
             self.val_set = fixed_patches(
                 self.val_pairs,

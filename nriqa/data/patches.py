@@ -17,7 +17,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
-from nriqa.data.anchors import NO_ANCHORS, Anchors, make_anchors
+from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
 from nriqa.data.pixel_filter import (
     SIGMA_RANGE,
     apply_pixel_filter,
@@ -126,7 +126,7 @@ class TrainPatches(Dataset):
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
-        self.anchors = make_anchors(pairs, anchors.scenes, anchors.roots)
+        self.anchors = check_anchors(anchors, pairs)
         check_patch_size(pairs, patch_size)
         check_pairs(pairs, display is not None, twins, albedo_pass)
         self.pairs = pairs
