@@ -39,6 +39,7 @@ NEW = (
     "foliage",
     "shafts",
     "pebbles",
+    "turned_light",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -430,7 +431,8 @@ def test_new_families_render_and_converge_on_the_tiny_preset(tiny):
 
 
 def test_dim_interior_is_mostly_dark_at_two_samples(tiny):
-    """Sparse bright samples: at 2 spp more pixels sit far below the reference than in the Cornell box."""
+    """Sparse bright samples: at 2 spp more pixels sit far below the reference than in the Cornell box;
+    turned_light (moderately dim) lies between the two."""
     records, _ = read_manifest(tiny)
 
     def dark_fraction(scene):
@@ -443,6 +445,8 @@ def test_dim_interior_is_mostly_dark_at_two_samples(tiny):
         return float((lum < 0.1 * ref).mean())
 
     assert dark_fraction("dim_interior") > 0.5 and dark_fraction("dim_interior") > 2 * dark_fraction("cornell")
+    # the luminaire turned to a surface: between the two (measured 0.27 against 0.04 and 0.79)
+    assert 2 * dark_fraction("cornell") < dark_fraction("turned_light") < dark_fraction("dim_interior") - 0.2
 
 
 def test_exterior_reference_has_highlights_far_above_one(tiny):
