@@ -12,6 +12,7 @@ from torch.utils.data import DataLoader, TensorDataset
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
 from nriqa.data.anchors import Anchors
+from nriqa.data.ladders import check_span
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
@@ -82,6 +83,10 @@ class NRIQADataModule(L.LightningDataModule):
         anchor_data: dataset roots (some of ``data_dir``) whose every training patch learns the starting
             network's map, whatever its family: keep the start's reading of one set while another set of the
             same families (e.g. data_gen's ``zoom`` crops) teaches it (:mod:`nriqa.data.anchors`).
+        ladder_pairs: draw training items in pairs, item ``2i + 1`` the same cut of another rung of item
+            ``2i``'s ladder within ``ladder_span`` doublings of its sample count (:mod:`nriqa.data.ladders`), for
+            the training module's ``ladder_weight`` (``nriqa-train ladder_weight=W`` sets both); needs an even
+            ``batch_size``. False (the default): every item drawn alone, as before.
         seed: seeds patch positions, jitter and the validation set.
         num_workers, pin_memory: passed to the DataLoaders.
         device: where training patches are made. ``None``: on the CPU, in the loader (and its
@@ -113,6 +118,8 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         anchor_scenes: Sequence[str] = (),
         anchor_data: Sequence[str | os.PathLike] = (),
+        ladder_pairs: bool = False,
+        ladder_span: int = 2,
         seed: int = 12345,
         num_workers: int = 0,
         pin_memory: bool = False,
@@ -121,7 +128,9 @@ class NRIQADataModule(L.LightningDataModule):
         super().__init__()
         check_target(target)
         if device is not None and (num_workers or pin_memory):
-            raise ValueError(f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false")
+            raise ValueError(
+                f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"
+            )
         jitter = dict(jitter or {})
         unknown = set(jitter) - {"hsv", "geometric"}
         if unknown:
@@ -144,6 +153,10 @@ class NRIQADataModule(L.LightningDataModule):
         self.val_scene = val_scene
         self.scenes = scenes
         self.anchors = Anchors(frozenset(anchor_scenes), tuple(anchor_data))
+        self.ladder_pairs = bool(ladder_pairs)
+        self.ladder_span = check_span(ladder_span)
+        if self.ladder_pairs and batch_size % 2:
+            raise ValueError(f"data.ladder_pairs draws pairs of items: data.batch_size must be even, got {batch_size}")
         self.patch_size = patch_size
         self.target = target
         self.batch_size = batch_size
@@ -190,6 +203,8 @@ class NRIQADataModule(L.LightningDataModule):
             pixel_filter_p=self.pixel_filter_p,
             pixel_filter_sigma=self.pixel_filter_sigma,
             anchors=self.anchors,
+            ladder_pairs=self.ladder_pairs,
+            ladder_span=self.ladder_span,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

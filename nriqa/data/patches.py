@@ -27,6 +27,7 @@ from nriqa.data.pixel_filter import (
 )
 from nriqa.data.images import ImagePair
 from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
+from nriqa.data.ladders import check_span, ladder_partners, pick_partner
 from nriqa.data.targets import check_target, compute_target
 
 # The display renders go through at inference (EXR input): the package tone map.
@@ -102,8 +103,11 @@ class TrainPatches(Dataset):
     the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchors`` each item
     is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`): the
     training module then learns the starting network's map there instead of the target
-    (:class:`nriqa.training.module.NRIQAModule`). Any ``k >= 0`` is valid; ``len`` is the number of
-    items per epoch.
+    (:class:`nriqa.training.module.NRIQAModule`). With ``ladder_pairs`` every odd item ``k`` is item ``k - 1``'s
+    cut, display, jitter, texture and filter taken from another rung of its ladder within ``ladder_span``
+    doublings of its sample count (:mod:`nriqa.data.ladders`; the same image where there is none), so a batch
+    of even size holds pairs ``(2i, 2i + 1)`` of one view at two sample counts. Any ``k >= 0`` is valid; ``len``
+    is the number of items per epoch.
     """
 
     def __init__(
@@ -123,9 +127,13 @@ class TrainPatches(Dataset):
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: tuple[float, float] = SIGMA_RANGE,
         anchors: Anchors = NO_ANCHORS,
+        ladder_pairs: bool = False,
+        ladder_span: int = 2,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
+        if ladder_pairs and length % 2:
+            raise ValueError(f"ladder pairs need an even number of items per epoch, got {length}")
         self.anchors = check_anchors(anchors, pairs)
         check_patch_size(pairs, patch_size)
         check_pairs(pairs, display is not None, twins, albedo_pass)
@@ -143,6 +151,9 @@ class TrainPatches(Dataset):
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.cdf: Tensor | None = None
+        self.ladder_pairs = bool(ladder_pairs)
+        span = check_span(ladder_span)
+        self.partners = ladder_partners([p.record for p in pairs], span) if self.ladder_pairs else []
 
     def __len__(self) -> int:
         return self.length
@@ -167,15 +178,28 @@ class TrainPatches(Dataset):
 
     def pick(self, g: torch.Generator) -> ImagePair:
         """The image of one draw: uniform, or by the weights of :meth:`set_weights`."""
+        return self.pairs[self.pick_index(g)]
+
+    def pick_index(self, g: torch.Generator) -> int:
+        """The index of :meth:`pick`'s image."""
         if self.cdf is None:
-            return self.pairs[int(torch.randint(0, len(self.pairs), (1,), generator=g))]
+            return int(torch.randint(0, len(self.pairs), (1,), generator=g))
         u = torch.rand(1, generator=g, dtype=torch.float64)
-        return self.pairs[min(int(torch.searchsorted(self.cdf, u, right=True)), len(self.pairs) - 1)]
+        return min(int(torch.searchsorted(self.cdf, u, right=True)), len(self.pairs) - 1)
 
     def draw(self, index: int) -> Draw:
-        """The random choices of item ``index``: image, position, display, jitter and albedo, from ``(seed, index)``."""
+        """The random choices of item ``index``: image, position, display, jitter and albedo, from ``(seed, index)``.
+
+        With ``ladder_pairs`` an odd ``index`` takes item ``index - 1``'s choices to another rung of its ladder.
+        """
+        if self.ladder_pairs and index % 2:
+            first = self.draw(index - 1)
+            own = first.image
+            other = pick_partner(self.partners[own], own, item_generator(self.seed, index))
+            return dataclasses.replace(first, pair=self.pairs[other], image=other)
         g = item_generator(self.seed, index)
-        pair = self.pick(g)
+        image = self.pick_index(g)
+        pair = self.pairs[image]
         h, w = pair.noisy.shape[-2:]
         y = int(torch.randint(0, h - self.patch_size + 1, (1,), generator=g))
         x = int(torch.randint(0, w - self.patch_size + 1, (1,), generator=g))
@@ -185,7 +209,7 @@ class TrainPatches(Dataset):
         sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn last: the rest as before
         if pair.record.pixel_filter != "box":
             sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
-        return Draw(pair, y, x, display, jitter, albedo, sigma)
+        return Draw(pair, y, x, display, jitter, albedo, sigma, image)
 
     def __getitem__(self, index: int) -> tuple[Tensor, ...]:
         return self.__getitems__([index])[0]
@@ -228,6 +252,7 @@ class Draw:
     jitter: JitterParams | None
     albedo: int | None = None  # the seed of the patch's albedo texture (nriqa.data.albedo), or none
     pixel_sigma: float | None = None  # the pixel filter's standard deviation (nriqa.data.pixel_filter), or none
+    image: int = -1  # the index of ``pair`` among the training images
 
 
 def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
@@ -339,7 +364,9 @@ class EpochSampler(Sampler[int]):
         return self.n
 
     def __iter__(self):
-        rank, world = (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
+        rank, world = (
+            (dist.get_rank(), dist.get_world_size()) if dist.is_available() and dist.is_initialized() else (0, 1)
+        )
         start = (self.epoch * world + rank) * self.n
         return iter(range(start, start + self.n))
 

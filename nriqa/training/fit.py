@@ -93,13 +93,19 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.data.get("val_scene") is None:
         _fit_without_val(cfg)
 
-    datamodule = hydra.utils.instantiate(cfg.data)
+    ladder_weight = float(cfg.get("ladder_weight") or 0.0)
+    if not ladder_weight >= 0.0:
+        raise ValueError(f"ladder_weight must be >= 0, got {ladder_weight}")
+    # ladder pairs are drawn exactly when the loss uses them (nriqa.data.ladders)
+    datamodule = hydra.utils.instantiate(cfg.data, ladder_pairs=ladder_weight > 0)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
     hard = cfg.get("hard_sampling") or {}
     # both checked before any work; a power of 0 is refused, not read as the default
     mix, power = check_mix(hard.get("mix") or 0.0), check_power(hard.get("power", 1.0))
-    model: NRIQAModule = hydra.utils.instantiate(cfg.model, freeze_bn=bool(cfg.get("freeze_bn")))
+    model: NRIQAModule = hydra.utils.instantiate(
+        cfg.model, freeze_bn=bool(cfg.get("freeze_bn")), ladder_weight=ladder_weight
+    )
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
         model.hparams.update({"init_from": str(cfg.init_from), "init_member": cfg.get("init_member")})

@@ -18,6 +18,8 @@ from torch import Tensor, nn
 from torchmetrics import CatMetric, MeanMetric
 
 from nriqa.core.sampling import evenly_spaced, metric_samples
+from nriqa.losses.charbonnier import EPS as CHARBONNIER_EPS
+from nriqa.losses.charbonnier import charbonnier
 from nriqa.models import create_model
 from nriqa.training.batchnorm import freeze_batchnorm
 from nriqa.training.metrics import correlations
@@ -51,6 +53,11 @@ class NRIQAModule(L.LightningModule):
     the starting network's reading of families it learnt from many more scenes than the fine-tune holds.
     The teacher is frozen, runs in eval mode, and is neither trained nor saved in checkpoints.
 
+    Ladder pairs (``ladder_weight`` > 0): training batches hold pairs ``(2i, 2i + 1)`` of one view at two sample
+    counts (:mod:`nriqa.data.ladders`), and the training loss adds ``ladder_weight * Charbonnier(dp - dt)``
+    over the pairs, ``dp`` the difference of the two predicted means and ``dt`` of the two targets' (after
+    anchoring), so the score rises and falls along a ladder as the quality does; logged as ``train/ladder``.
+
     A non-finite training loss is counted (``nonfinite_steps``, ``first_nonfinite_step``), the
     optimizer step is skipped, and, with ``stop_on_nonfinite``, training stops after that batch.
     ``history`` holds one row of plain floats per epoch; ``last_val`` the last validation samples.
@@ -67,6 +74,7 @@ class NRIQAModule(L.LightningModule):
         stop_on_nonfinite: stop training at the first NaN/Inf loss.
         freeze_bn: keep every batch-norm layer in eval mode while training (running statistics fixed,
             :func:`nriqa.training.batchnorm.freeze_batchnorm`): the network trained is the one run.
+        ladder_weight: weight of the ladder-pair term, >= 0; 0 (the default): the loss alone.
     """
 
     def __init__(
@@ -80,8 +88,11 @@ class NRIQAModule(L.LightningModule):
         max_metric_samples: int = 2048,
         stop_on_nonfinite: bool = True,
         freeze_bn: bool = False,
+        ladder_weight: float = 0.0,
     ) -> None:
         super().__init__()
+        if not float(ladder_weight) >= 0.0:
+            raise ValueError(f"ladder_weight must be >= 0, got {ladder_weight}")
         if isinstance(net, nn.Module):
             net_spec = None
         else:
@@ -96,6 +107,7 @@ class NRIQAModule(L.LightningModule):
         self.max_metric_samples = max_metric_samples
         self.stop_on_nonfinite = stop_on_nonfinite
         self.freeze_bn = bool(freeze_bn)
+        self.ladder_weight = float(ladder_weight)
         self.save_hyperparameters(
             {
                 "net": net_spec,
@@ -105,6 +117,7 @@ class NRIQAModule(L.LightningModule):
                 "metric_pixels_per_map": metric_pixels_per_map,
                 "max_metric_samples": max_metric_samples,
                 "freeze_bn": self.freeze_bn,
+                "ladder_weight": self.ladder_weight,
             }
         )
         for stage in STAGES:
@@ -156,6 +169,11 @@ class NRIQAModule(L.LightningModule):
             y = self.anchored_target(x, y, anchored[0])
         pred = self(x)
         loss = self.loss_fn(pred, y)
+        if stage == "train" and self.ladder_weight > 0:
+            term = ladder_term(pred, y)
+            if torch.isfinite(term) and self._trainer is not None:
+                self.log("train/ladder", term.detach(), on_step=False, on_epoch=True, batch_size=x.shape[0])
+            loss = loss + self.ladder_weight * term
         if torch.isfinite(loss):
             getattr(self, f"{stage}_loss").update(loss.detach(), weight=x.shape[0])
             p, t = metric_samples(pred.detach(), y, self.metric_pixels_per_map)
@@ -219,3 +237,18 @@ class NRIQAModule(L.LightningModule):
         sched = self.scheduler_factory(optimizer=opt)
         scheduler = {"scheduler": sched, "monitor": self.scheduler_monitor, "interval": "epoch"}
         return {"optimizer": opt, "lr_scheduler": scheduler}
+
+
+def ladder_term(pred: Tensor, target: Tensor) -> Tensor:
+    """Mean Charbonnier of ``(p[2i+1] - p[2i]) - (t[2i+1] - t[2i])`` over a batch's pairs, ``p``/``t`` each item's
+    mean predicted / target map (:class:`NRIQAModule`'s ``ladder_weight``).
+
+        >>> t = torch.tensor([0.2, 0.5, 0.9, 0.8]).view(4, 1, 1, 1)
+        >>> round(ladder_term(t + 0.1, t).item(), 4)  # a shared bias is no error of order
+        0.001
+    """
+    if pred.shape[0] % 2:
+        raise ValueError(f"ladder pairs need an even batch, got {pred.shape[0]} items")
+    p = pred.reshape(pred.shape[0], -1).mean(dim=1)
+    t = target.reshape(target.shape[0], -1).mean(dim=1).to(p.dtype)
+    return charbonnier(p[1::2] - p[0::2], t[1::2] - t[0::2], CHARBONNIER_EPS)

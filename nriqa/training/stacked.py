@@ -175,6 +175,8 @@ def check_supported(cfg: DictConfig) -> None:
     why = []
     if (cfg.get("hard_sampling") or {}).get("mix"):
         why.append("hard_sampling.mix")
+    if cfg.get("ladder_weight"):
+        why.append("ladder_weight")
     if cfg.get("bn_estimate"):
         why.append("bn_estimate")
     if cfg.get("freeze_bn"):
