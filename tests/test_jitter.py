@@ -1,3 +1,5 @@
+import dataclasses
+
 import pytest
 import torch
 
@@ -116,3 +118,16 @@ def test_hue_is_modular():
     x = _img()
     twice = apply_jitter(apply_jitter(x, JitterParams(hue_shift=0.5)), JitterParams(hue_shift=0.25))
     torch.testing.assert_close(apply_jitter(x, JitterParams(hue_shift=0.75)), twice, atol=1e-5, rtol=0)
+
+
+def test_value_switch_drops_only_the_value_shift():
+    """value=False: hue, saturation and the geometric draw exactly as with it; the value shift 0."""
+    for seed in range(5):
+        with_value = sample_jitter(torch.Generator().manual_seed(seed))
+        without = sample_jitter(torch.Generator().manual_seed(seed), value=False)
+        assert without.val_shift == 0.0 and with_value.val_shift != 0.0
+        assert dataclasses.replace(with_value, val_shift=0.0) == without
+    # a dark image: the value shift is what moves its black pixels; without it black stays black
+    dark = torch.zeros(3, 4, 4)
+    p = sample_jitter(torch.Generator().manual_seed(1), value=False)
+    assert torch.equal(apply_jitter(dark, dataclasses.replace(p, flip=False, rot_k=0)), dark)

@@ -55,7 +55,8 @@ class NRIQADataModule(L.LightningDataModule):
         batch_size: patches per batch (training and validation).
         batches_per_epoch: training batches per epoch.
         val_patches: size of the fixed validation set.
-        jitter: ``{"hsv": bool, "geometric": bool}``.
+        jitter: ``{"hsv": bool, "geometric": bool, "value": bool}``; ``value`` false keeps the hue and saturation
+            shifts and drops the value shift (:func:`nriqa.data.jitter.sample_jitter`).
         display: ``None`` (every image through the package tone map), or the fields of a
             :class:`nriqa.core.display.DisplayMix`: training then draws a display transform per patch
             (tone map, exposure + sRGB / gamma 2.2 with clipping, 8-bit quantisation), applied to
@@ -132,9 +133,9 @@ class NRIQADataModule(L.LightningDataModule):
                 f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"
             )
         jitter = dict(jitter or {})
-        unknown = set(jitter) - {"hsv", "geometric"}
+        unknown = set(jitter) - {"hsv", "geometric", "value"}
         if unknown:
-            raise ValueError(f"unknown jitter switches {sorted(unknown)}; use hsv and geometric")
+            raise ValueError(f"unknown jitter switches {sorted(unknown)}; use hsv, value and geometric")
         # plain str / list before saving: a checkpoint must load with weights_only=True (no ListConfig)
         data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         display = None if display is None else {k: float(v) for k, v in dict(display).items()}
@@ -164,6 +165,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.val_patches = val_patches
         self.hsv = bool(jitter.get("hsv", True))
         self.geometric = bool(jitter.get("geometric", True))
+        self.value = bool(jitter.get("value", True))
         self.seed = seed
         self.num_workers = num_workers
         self.pin_memory = pin_memory
@@ -195,6 +197,7 @@ class NRIQADataModule(L.LightningDataModule):
             self.seed,
             hsv=self.hsv,
             geometric=self.geometric,
+            value=self.value,
             display=self.display,
             twins=self.twins,
             albedo_p=self.albedo_p,

@@ -42,7 +42,9 @@ class JitterParams:
         return (self.hue_shift, self.sat_shift, self.val_shift) != (0.0, 0.0, 0.0)
 
 
-def sample_jitter(generator: torch.Generator, hsv: bool = True, geometric: bool = True) -> JitterParams:
+def sample_jitter(
+    generator: torch.Generator, hsv: bool = True, geometric: bool = True, value: bool = True
+) -> JitterParams:
     """Draw one :class:`JitterParams` from ``generator`` (thesis eq. 5.1, flip p = 0.5, k ~ U{0..3}).
 
     The same number of random values is consumed whatever the flags, so switching one part off
@@ -52,6 +54,10 @@ def sample_jitter(generator: torch.Generator, hsv: bool = True, geometric: bool 
         generator: the source of randomness (seed it for reproducible training).
         hsv: draw the colour shifts; if False they are 0.
         geometric: draw flip and rotation; if False, no flip and k = 0.
+        value: with ``hsv``, draw the value shift too; if False it is 0 and hue and saturation are drawn as
+            before. An additive value shift lifts a dark render's black pixels or clips its dim ones to black in
+            both images, where SSIM is near 1, so a dark, sparse render's jittered targets run far above its own
+            (0.35-0.73 against 0.28 for one 2-spp render; docs/training.md).
 
     Examples:
         >>> p = sample_jitter(torch.Generator().manual_seed(0))
@@ -68,7 +74,7 @@ def sample_jitter(generator: torch.Generator, hsv: bool = True, geometric: bool 
             params,
             hue_shift=u[0],
             sat_shift=(2.0 * u[1] - 1.0) * SAT_RANGE,
-            val_shift=(2.0 * u[2] - 1.0) * VAL_RANGE,
+            val_shift=(2.0 * u[2] - 1.0) * VAL_RANGE if value else 0.0,
         )
     if geometric:
         params = dataclasses.replace(params, flip=u[3] < FLIP_P, rot_k=k)

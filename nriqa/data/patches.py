@@ -120,6 +120,7 @@ class TrainPatches(Dataset):
         hsv: bool = True,
         geometric: bool = True,
         display: DisplayMix | None = None,
+        value: bool = True,
         twins: bool = False,
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
@@ -144,6 +145,7 @@ class TrainPatches(Dataset):
         self.seed = seed
         self.hsv = hsv
         self.geometric = geometric
+        self.value = value
         self.display = display
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
@@ -204,7 +206,11 @@ class TrainPatches(Dataset):
         y = int(torch.randint(0, h - self.patch_size + 1, (1,), generator=g))
         x = int(torch.randint(0, w - self.patch_size + 1, (1,), generator=g))
         display = self.display.sample(g) if self.display is not None else TONEMAP
-        jitter = sample_jitter(g, hsv=self.hsv, geometric=self.geometric) if self.hsv or self.geometric else None
+        jitter = (
+            sample_jitter(g, hsv=self.hsv, geometric=self.geometric, value=self.value)
+            if self.hsv or self.geometric
+            else None
+        )
         albedo = sample_albedo(g, self.albedo_p)
         sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn last: the rest as before
         if pair.record.pixel_filter != "box":
