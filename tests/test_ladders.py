@@ -13,8 +13,9 @@ from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.ladders import ladder_key, ladder_partners
 from nriqa.io.manifest import Record
 from nriqa.losses import create_loss
+from nriqa.losses.ladder import ladder_term
 from nriqa.training.fit import train
-from nriqa.training.module import NRIQAModule, ladder_term
+from nriqa.training.module import NRIQAModule
 
 
 def _rec(spp: int, algorithm: str = "path", role: str = "test", reference: str = "s/reference.exr") -> Record:

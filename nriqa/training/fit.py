@@ -15,6 +15,7 @@ import hydra
 import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from nriqa.losses.ladder import check_ladder_weight
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.hard_sampling import check_mix, check_power, draw_weights
 from nriqa.training.last_checkpoint import LastCheckpoint
@@ -93,9 +94,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.data.get("val_scene") is None:
         _fit_without_val(cfg)
 
-    ladder_weight = float(cfg.get("ladder_weight") or 0.0)
-    if not ladder_weight >= 0.0:
-        raise ValueError(f"ladder_weight must be >= 0, got {ladder_weight}")
+    ladder_weight = check_ladder_weight(cfg.get("ladder_weight") or 0.0)  # checked before any work
     # ladder pairs are drawn exactly when the loss uses them (nriqa.data.ladders)
     datamodule = hydra.utils.instantiate(cfg.data, ladder_pairs=ladder_weight > 0)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.

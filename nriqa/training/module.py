@@ -18,8 +18,7 @@ from torch import Tensor, nn
 from torchmetrics import CatMetric, MeanMetric
 
 from nriqa.core.sampling import evenly_spaced, metric_samples
-from nriqa.losses.charbonnier import EPS as CHARBONNIER_EPS
-from nriqa.losses.charbonnier import charbonnier
+from nriqa.losses.ladder import check_ladder_weight, ladder_term
 from nriqa.models import create_model
 from nriqa.training.batchnorm import freeze_batchnorm
 from nriqa.training.metrics import correlations
@@ -55,8 +54,9 @@ class NRIQAModule(L.LightningModule):
 
     Ladder pairs (``ladder_weight`` > 0): training batches hold pairs ``(2i, 2i + 1)`` of one view at two sample
     counts (:mod:`nriqa.data.ladders`), and the training loss adds ``ladder_weight * Charbonnier(dp - dt)``
-    over the pairs, ``dp`` the difference of the two predicted means and ``dt`` of the two targets' (after
-    anchoring), so the score rises and falls along a ladder as the quality does; logged as ``train/ladder``.
+    over the pairs (:func:`nriqa.losses.ladder.ladder_term`), ``dp`` the difference of the two predicted means
+    and ``dt`` of the two targets' (after anchoring), so the score rises and falls along a ladder as the
+    quality does; logged as ``train/ladder``.
 
     A non-finite training loss is counted (``nonfinite_steps``, ``first_nonfinite_step``), the
     optimizer step is skipped, and, with ``stop_on_nonfinite``, training stops after that batch.
@@ -91,8 +91,6 @@ class NRIQAModule(L.LightningModule):
         ladder_weight: float = 0.0,
     ) -> None:
         super().__init__()
-        if not float(ladder_weight) >= 0.0:
-            raise ValueError(f"ladder_weight must be >= 0, got {ladder_weight}")
         if isinstance(net, nn.Module):
             net_spec = None
         else:
@@ -107,7 +105,7 @@ class NRIQAModule(L.LightningModule):
         self.max_metric_samples = max_metric_samples
         self.stop_on_nonfinite = stop_on_nonfinite
         self.freeze_bn = bool(freeze_bn)
-        self.ladder_weight = float(ladder_weight)
+        self.ladder_weight = check_ladder_weight(ladder_weight)
         self.save_hyperparameters(
             {
                 "net": net_spec,
@@ -237,18 +235,3 @@ class NRIQAModule(L.LightningModule):
         sched = self.scheduler_factory(optimizer=opt)
         scheduler = {"scheduler": sched, "monitor": self.scheduler_monitor, "interval": "epoch"}
         return {"optimizer": opt, "lr_scheduler": scheduler}
-
-
-def ladder_term(pred: Tensor, target: Tensor) -> Tensor:
-    """Mean Charbonnier of ``(p[2i+1] - p[2i]) - (t[2i+1] - t[2i])`` over a batch's pairs, ``p``/``t`` each item's
-    mean predicted / target map (:class:`NRIQAModule`'s ``ladder_weight``).
-
-        >>> t = torch.tensor([0.2, 0.5, 0.9, 0.8]).view(4, 1, 1, 1)
-        >>> round(ladder_term(t + 0.1, t).item(), 4)  # a shared bias is no error of order
-        0.001
-    """
-    if pred.shape[0] % 2:
-        raise ValueError(f"ladder pairs need an even batch, got {pred.shape[0]} items")
-    p = pred.reshape(pred.shape[0], -1).mean(dim=1)
-    t = target.reshape(target.shape[0], -1).mean(dim=1).to(p.dtype)
-    return charbonnier(p[1::2] - p[0::2], t[1::2] - t[0::2], CHARBONNIER_EPS)
