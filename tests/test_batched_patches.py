@@ -42,7 +42,7 @@ def one_by_one(ds, k):
     if pair.linear:
         members = [apply_display(m, display, pair.key) for m in members]
     if ds.hsv or ds.geometric:
-        params = sample_jitter(g, hsv=ds.hsv, geometric=ds.geometric)
+        params = sample_jitter(g, hsv=ds.hsv, geometric=ds.geometric, value=ds.value)
         members = [apply_jitter(m, params) for m in members]
     target = compute_target(ds.target, members[0][None], members[1][None])[0]
     x = members[0] if not ds.twins else torch.cat([members[0], members[2]])
@@ -56,6 +56,8 @@ def one_by_one(ds, k):
         {"display": MIX, "twins": True},
         {"display": MIX, "jitter": {"hsv": False, "geometric": True}},
         {"jitter": {"hsv": True, "geometric": False}},
+        {"jitter": {"hsv": True, "geometric": True, "value": "scale"}},
+        {"display": MIX, "jitter": {"hsv": True, "geometric": True, "value": False}},
         {"jitter": {"hsv": False, "geometric": False}},
         {"target": "patch_mae"},
         {"albedo_p": 0.5},

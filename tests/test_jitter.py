@@ -1,9 +1,10 @@
 import dataclasses
+import math
 
 import pytest
 import torch
 
-from nriqa.data.jitter import JitterParams, apply_jitter, jitter_pair, sample_jitter
+from nriqa.data.jitter import VAL_STOPS, JitterParams, apply_jitter, check_value_mode, jitter_pair, sample_jitter
 
 
 def _img(h=6, w=9, seed=0, batch=None):
@@ -131,3 +132,61 @@ def test_value_switch_drops_only_the_value_shift():
     dark = torch.zeros(3, 4, 4)
     p = sample_jitter(torch.Generator().manual_seed(1), value=False)
     assert torch.equal(apply_jitter(dark, dataclasses.replace(p, flip=False, rot_k=0)), dark)
+
+
+def test_value_scale_multiplies_value_from_the_same_draw():
+    """value="scale": the same random numbers as "add", value multiplied by 2^U(-0.7, 0.7) instead of shifted."""
+    factors = []
+    for seed in range(40):
+        add = sample_jitter(torch.Generator().manual_seed(seed))
+        scale = sample_jitter(torch.Generator().manual_seed(seed), value="scale")
+        assert scale.val_shift == 0.0
+        assert dataclasses.replace(add, val_shift=0.0, val_scale=scale.val_scale) == scale
+        # the same uniform number: shift / 0.3 == log2(scale) / 0.7
+        assert add.val_shift / 0.3 == pytest.approx(math.log2(scale.val_scale) / VAL_STOPS)
+        factors.append(scale.val_scale)
+    assert 2.0**-VAL_STOPS <= min(factors) < 1.0 < max(factors) <= 2.0**VAL_STOPS
+    # a grey pixel's value is multiplied (hue and saturation of a grey stay 0), clipped at 1
+    grey = torch.full((3, 2, 2), 0.5)
+    out = apply_jitter(grey, JitterParams(val_scale=1.5))
+    torch.testing.assert_close(out, torch.full((3, 2, 2), 0.75))
+    torch.testing.assert_close(apply_jitter(grey, JitterParams(val_scale=2.5)), torch.ones(3, 2, 2))
+
+
+def test_value_scale_keeps_a_dark_sparse_render_dark():
+    """Black stays black under a scale (the additive shift lifts it to the same grey in both images)."""
+    img = torch.zeros(3, 8, 8)
+    img[:, 2, 3] = torch.tensor([0.6, 0.3, 0.1])
+    for seed in range(10):
+        p = dataclasses.replace(sample_jitter(torch.Generator().manual_seed(seed), value="scale"), flip=False, rot_k=0)
+        out = apply_jitter(img, p)
+        assert torch.equal(out[:, img.sum(0) == 0], img[:, img.sum(0) == 0])
+        assert float(out.max()) > 0.0
+    lifted = apply_jitter(img, JitterParams(val_shift=0.2))
+    assert float(lifted[:, 0, 0].max()) == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "value, mode", [(True, "add"), (False, "off"), ("add", "add"), ("scale", "scale"), ("off", "off")]
+)
+def test_value_modes(value, mode):
+    assert check_value_mode(value) == mode
+
+
+@pytest.mark.parametrize("bad", ["multiply", 1, None, "Scale"])
+def test_value_mode_refused_in_one_line(bad):
+    with pytest.raises(ValueError) as info:
+        check_value_mode(bad)
+    assert "data.jitter.value" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_the_datamodule_takes_the_value_mode_and_refuses_an_unknown_one(synthetic_dataset):
+    from nriqa.data.datamodule import NRIQADataModule
+
+    dm = NRIQADataModule(synthetic_dataset, batch_size=4, jitter={"hsv": True, "geometric": True, "value": "scale"})
+    dm.setup("fit")
+    assert dm.train_set.value == "scale"
+    draws = [dm.train_set.draw(k).jitter for k in range(8)]
+    assert all(d.val_shift == 0.0 and d.val_scale != 1.0 for d in draws)
+    with pytest.raises(ValueError, match="data.jitter.value must be one of add, scale, off"):
+        NRIQADataModule(synthetic_dataset, jitter={"value": "multiply"})

@@ -16,6 +16,7 @@ from nriqa.data.ladders import check_span
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
+from nriqa.data.jitter import check_value_mode
 from nriqa.data.patches import EpochSampler, TrainPatches, fixed_patches
 from nriqa.data.targets import check_target
 from nriqa.io.manifest import read_datasets
@@ -55,8 +56,9 @@ class NRIQADataModule(L.LightningDataModule):
         batch_size: patches per batch (training and validation).
         batches_per_epoch: training batches per epoch.
         val_patches: size of the fixed validation set.
-        jitter: ``{"hsv": bool, "geometric": bool, "value": bool}``; ``value`` false keeps the hue and saturation
-            shifts and drops the value shift (:func:`nriqa.data.jitter.sample_jitter`).
+        jitter: ``{"hsv": bool, "geometric": bool, "value": "add" | "scale" | "off"}``; ``value`` ``"add"`` (or
+            true) is the thesis's additive value shift, ``"off"`` (or false) keeps the hue and saturation shifts and
+            drops it, ``"scale"`` multiplies value instead (:func:`nriqa.data.jitter.sample_jitter`).
         display: ``None`` (every image through the package tone map), or the fields of a
             :class:`nriqa.core.display.DisplayMix`: training then draws a display transform per patch
             (tone map, exposure + sRGB / gamma 2.2 with clipping, 8-bit quantisation), applied to
@@ -165,7 +167,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.val_patches = val_patches
         self.hsv = bool(jitter.get("hsv", True))
         self.geometric = bool(jitter.get("geometric", True))
-        self.value = bool(jitter.get("value", True))
+        self.value = check_value_mode(jitter.get("value", "add"))
         self.seed = seed
         self.num_workers = num_workers
         self.pin_memory = pin_memory

@@ -16,6 +16,8 @@ from torch import Tensor
 
 SAT_RANGE = 0.3
 VAL_RANGE = 0.3
+VAL_STOPS = 0.7
+VALUE_MODES = ("add", "scale", "off")
 FLIP_P = 0.5
 
 
@@ -27,6 +29,8 @@ class JitterParams:
         hue_shift: added to hue in turns, in [0, 1) (eq. 5.1: H' = (H + U(0, 1)) mod 1).
         sat_shift: added to saturation, in [-0.3, 0.3] (S' = clip(S + U(-0.3, 0.3), 0, 1)).
         val_shift: added to value, in [-0.3, 0.3] (V' = clip(V + U(-0.3, 0.3), 0, 1)).
+        val_scale: multiplies value first, in [2^-0.7, 2^0.7] with ``value="scale"``
+            (V' = clip(V * 2^U(-0.7, 0.7), 0, 1), an exposure change of the displayed image); 1 otherwise.
         flip: mirror left-right.
         rot_k: number of counter-clockwise quarter turns, 0..3 (after the flip).
     """
@@ -34,16 +38,32 @@ class JitterParams:
     hue_shift: float = 0.0
     sat_shift: float = 0.0
     val_shift: float = 0.0
+    val_scale: float = 1.0
     flip: bool = False
     rot_k: int = 0
 
     @property
     def has_hsv(self) -> bool:
-        return (self.hue_shift, self.sat_shift, self.val_shift) != (0.0, 0.0, 0.0)
+        return (self.hue_shift, self.sat_shift, self.val_shift, self.val_scale) != (0.0, 0.0, 0.0, 1.0)
+
+
+def check_value_mode(value: bool | str) -> str:
+    """The value part of the HSV jitter as one of :data:`VALUE_MODES`; ``True`` is ``"add"``, ``False`` is ``"off"``.
+
+    Raises:
+        ValueError: anything else, in one line naming the choices.
+    """
+    if value is True or value is False:
+        return "add" if value else "off"
+    if isinstance(value, str) and value in VALUE_MODES:
+        return value
+    raise ValueError(
+        f"data.jitter.value must be one of {', '.join(VALUE_MODES)} (or true = add, false = off), got {value!r}"
+    )
 
 
 def sample_jitter(
-    generator: torch.Generator, hsv: bool = True, geometric: bool = True, value: bool = True
+    generator: torch.Generator, hsv: bool = True, geometric: bool = True, value: bool | str = "add"
 ) -> JitterParams:
     """Draw one :class:`JitterParams` from ``generator`` (thesis eq. 5.1, flip p = 0.5, k ~ U{0..3}).
 
@@ -54,10 +74,12 @@ def sample_jitter(
         generator: the source of randomness (seed it for reproducible training).
         hsv: draw the colour shifts; if False they are 0.
         geometric: draw flip and rotation; if False, no flip and k = 0.
-        value: with ``hsv``, draw the value shift too; if False it is 0 and hue and saturation are drawn as
-            before. An additive value shift lifts a dark render's black pixels or clips its dim ones to black in
-            both images, where SSIM is near 1, so a dark, sparse render's jittered targets run far above its own
-            (0.35-0.73 against 0.28 for one 2-spp render; docs/training.md).
+        value: with ``hsv``, how value moves (:func:`check_value_mode`): ``"add"`` (the thesis, ``True``) adds
+            U(-0.3, 0.3); ``"off"`` (``False``) leaves it, hue and saturation drawn as before; ``"scale"`` multiplies
+            it by 2^U(-0.7, 0.7) from the same random number. An additive value shift lifts a dark render's black
+            pixels or clips its dim ones to black in both images, where SSIM is near 1, so a dark, sparse render's
+            jittered targets run far above its own (0.35-0.73 against 0.28 for one 2-spp render;
+            docs/training.md); a scale keeps black pixels black, as an exposure change does.
 
     Examples:
         >>> p = sample_jitter(torch.Generator().manual_seed(0))
@@ -66,6 +88,7 @@ def sample_jitter(
     """
     if not isinstance(generator, torch.Generator):
         raise TypeError(f"sample_jitter needs a torch.Generator, got {type(generator).__name__}")
+    mode = check_value_mode(value)
     u = torch.rand(4, generator=generator, dtype=torch.float64, device=generator.device).tolist()
     k = int(torch.randint(0, 4, (1,), generator=generator, device=generator.device).item())
     params = JitterParams()
@@ -74,7 +97,8 @@ def sample_jitter(
             params,
             hue_shift=u[0],
             sat_shift=(2.0 * u[1] - 1.0) * SAT_RANGE,
-            val_shift=(2.0 * u[2] - 1.0) * VAL_RANGE if value else 0.0,
+            val_shift=(2.0 * u[2] - 1.0) * VAL_RANGE if mode == "add" else 0.0,
+            val_scale=2.0 ** ((2.0 * u[2] - 1.0) * VAL_STOPS) if mode == "scale" else 1.0,
         )
     if geometric:
         params = dataclasses.replace(params, flip=u[3] < FLIP_P, rot_k=k)
@@ -102,7 +126,7 @@ def apply_jitter(img: Tensor, p: JitterParams) -> Tensor:
         raise ValueError(f"apply_jitter expects (3, H, W) or (B, 3, H, W) RGB, got {tuple(img.shape)}")
     out = img
     if p.has_hsv:
-        out = shift_hsv(img, p.hue_shift, p.sat_shift, p.val_shift)
+        out = shift_hsv(img, p.hue_shift, p.sat_shift, p.val_shift, p.val_scale)
     if p.flip:
         out = out.flip(-1)
     if p.rot_k % 4:
@@ -110,12 +134,16 @@ def apply_jitter(img: Tensor, p: JitterParams) -> Tensor:
     return out
 
 
-def shift_hsv(img: Tensor, hue: float | Tensor, sat: float | Tensor, val: float | Tensor) -> Tensor:
+def shift_hsv(
+    img: Tensor, hue: float | Tensor, sat: float | Tensor, val: float | Tensor, scale: float | Tensor = 1.0
+) -> Tensor:
     """The colour part of the jitter (eq. 5.1): shift hue (in turns, wrapped), saturation and value (clipped).
+
+    Value is multiplied by ``scale`` before ``val`` is added (the ``"scale"`` mode of :func:`sample_jitter`).
 
     Args:
         img: ``(..., 3, H, W)`` RGB in [0, 1].
-        hue, sat, val: the shifts, numbers or tensors that broadcast against ``(..., H, W)`` (one per
+        hue, sat, val, scale: the shifts and the value factor, numbers or tensors that broadcast against ``(..., H, W)`` (one per
             image of a batch: shape ``(B, 1, 1)``); a tensor hue is turned into radians in its own
             dtype (give float64 for the same result as a Python number), then moved to the image's
             device and dtype.
@@ -129,7 +157,7 @@ def shift_hsv(img: Tensor, hue: float | Tensor, sat: float | Tensor, val: float 
         angle = angle.to(device=h.device, dtype=h.dtype)
     h = torch.remainder(h + angle, 2.0 * math.pi)
     s = (s + sat).clamp(0.0, 1.0)
-    v = (v + val).clamp(0.0, 1.0)
+    v = (v * scale + val).clamp(0.0, 1.0)
     return hsv_to_rgb(torch.stack((h, s, v), dim=-3)).clamp(0.0, 1.0)
 
 

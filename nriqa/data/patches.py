@@ -26,7 +26,7 @@ from nriqa.data.pixel_filter import (
     sample_pixel_filter,
 )
 from nriqa.data.images import ImagePair
-from nriqa.data.jitter import JitterParams, sample_jitter, shift_hsv
+from nriqa.data.jitter import JitterParams, check_value_mode, sample_jitter, shift_hsv
 from nriqa.data.ladders import check_span, ladder_partners, pick_partner
 from nriqa.data.targets import check_target, compute_target
 
@@ -120,7 +120,7 @@ class TrainPatches(Dataset):
         hsv: bool = True,
         geometric: bool = True,
         display: DisplayMix | None = None,
-        value: bool = True,
+        value: bool | str = "add",
         twins: bool = False,
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
@@ -145,7 +145,7 @@ class TrainPatches(Dataset):
         self.seed = seed
         self.hsv = hsv
         self.geometric = geometric
-        self.value = value
+        self.value = check_value_mode(value)
         self.display = display
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
@@ -333,12 +333,13 @@ def jitter_batch(draws: list[Draw], members: list[Tensor]) -> list[Tensor]:
     colour = [i for i, p in enumerate(params) if p is not None and p.has_hsv]
     if colour:
         shifts = torch.tensor(
-            [[params[i].hue_shift, params[i].sat_shift, params[i].val_shift] for i in colour], dtype=torch.float64
-        ).view(-1, 3, 1, 1)
-        hue, sat, val = shifts[:, 0], shifts[:, 1].to(members[0]), shifts[:, 2].to(members[0])
+            [[params[i].hue_shift, params[i].sat_shift, params[i].val_shift, params[i].val_scale] for i in colour],
+            dtype=torch.float64,
+        ).view(-1, 4, 1, 1)
+        hue, sat, val, scale = shifts[:, 0], *(shifts[:, j].to(members[0]) for j in (1, 2, 3))
         members = [m.clone() for m in members]
         for m in members:
-            m[colour] = shift_hsv(m[colour], hue, sat, val)
+            m[colour] = shift_hsv(m[colour], hue, sat, val, scale)
     out = []
     for m in members:
         items = []
