@@ -40,6 +40,7 @@ NEW = (
     "shafts",
     "pebbles",
     "turned_light",
+    "trinkets",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -300,6 +301,37 @@ def test_pebbles_lie_on_the_ground_each_stone_its_own_colour():
         suns.append("sun" in scene)
         assert {"stones", "sky", "ground"} <= set(scene) and forward[1] < 0
     assert 0.1 < np.mean(down) < 0.5 and 0.5 < np.mean(suns) < 0.95, "some views straight down, some overcast"
+
+
+def test_trinkets_are_smooth_beads_flat_coins_and_pins_on_the_surface():
+    from data_gen.scenes.trinkets import beads_mesh, coins_mesh, icosphere
+
+    unit, faces = icosphere()
+    assert unit.shape == (42, 3) and faces.shape == (80, 3) and np.allclose(np.linalg.norm(unit, axis=1), 1)
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    assert len(np.unique(edges, axis=0)) == 120, "a closed sphere: every edge shared by two faces"
+    normals = np.cross(unit[faces[:, 1]] - unit[faces[:, 0]], unit[faces[:, 2]] - unit[faces[:, 0]])
+    assert (np.einsum("ij,ij->i", normals, unit[faces].mean(1)) > 0).all(), "wound outwards"
+    rng = np.random.default_rng(0)
+    radii = np.full(100, 0.02)
+    centres = np.stack([rng.uniform(-1, 1, 100), radii, rng.uniform(-1, 1, 100)], 1)
+    beads = mi.traverse(beads_mesh("b", rng, centres, radii, {"type": "diffuse"}))
+    pos = np.array(beads["vertex_positions"]).reshape(-1, 3)
+    assert len(pos) == 100 * 42 and np.allclose(pos[:, 1].min(), 0, atol=1e-6), "each bead rests on the surface"
+    assert len(np.array(beads["vertex_normals"])) == len(pos) * 3, "smooth shaded: sharp highlights"
+    coins = coins_mesh("c", rng, np.stack([centres[:, 0], np.zeros(100), centres[:, 2]], 1), radii * 2, {"type": "diffuse"})
+    cpos = np.array(mi.traverse(coins)["vertex_positions"]).reshape(-1, 3)
+    assert coins.face_count() == 100 * (20 + 16) and np.abs(cpos[:, 1]).max() < 0.02, "flat discs, nearly level"
+    spec = get_scene("trinkets")
+    down, lamps = [], []
+    for v in range(24):
+        scene = spec.build(np.random.default_rng(derive_seed(0, "trinkets", v)))
+        forward = np.array(scene["sensor"]["to_world"].matrix)[:3, 2]
+        down.append(forward[1] < -0.9)
+        lamps.append("lamp0" in scene)
+        assert {"beads", "coins", "ground"} <= set(scene) and forward[1] < 0
+        assert ("lamp0" in scene) != ("sun" in scene), "small lamps or the sun, not both"
+    assert 0.15 < np.mean(down) < 0.6 and 0.35 < np.mean(lamps) < 0.85, "some views straight down, some sunlit"
 
 
 def test_shafts_camera_stands_in_the_haze_and_the_sun_comes_in_through_the_window():
