@@ -319,7 +319,9 @@ def test_trinkets_are_smooth_beads_flat_coins_and_pins_on_the_surface():
     pos = np.array(beads["vertex_positions"]).reshape(-1, 3)
     assert len(pos) == 100 * 42 and np.allclose(pos[:, 1].min(), 0, atol=1e-6), "each bead rests on the surface"
     assert len(np.array(beads["vertex_normals"])) == len(pos) * 3, "smooth shaded: sharp highlights"
-    coins = coins_mesh("c", rng, np.stack([centres[:, 0], np.zeros(100), centres[:, 2]], 1), radii * 2, {"type": "diffuse"})
+    coins = coins_mesh(
+        "c", rng, np.stack([centres[:, 0], np.zeros(100), centres[:, 2]], 1), radii * 2, {"type": "diffuse"}
+    )
     cpos = np.array(mi.traverse(coins)["vertex_positions"]).reshape(-1, 3)
     assert coins.face_count() == 100 * (20 + 16) and np.abs(cpos[:, 1]).max() < 0.02, "flat discs, nearly level"
     spec = get_scene("trinkets")

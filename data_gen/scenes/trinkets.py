@@ -69,7 +69,9 @@ def bead_colors(rng: np.random.Generator, count: int) -> np.ndarray:
     return np.clip(palette[rng.integers(0, len(palette), count)] * rng.uniform(0.8, 1.2, (count, 3)), 0.02, 0.9)
 
 
-def coins_mesh(name: str, rng: np.random.Generator, centres: np.ndarray, radii: np.ndarray, bsdf: dict, sides: int = 10):
+def coins_mesh(
+    name: str, rng: np.random.Generator, centres: np.ndarray, radii: np.ndarray, bsdf: dict, sides: int = 10
+):
     """Flat discs (closed ``sides``-gonal prisms, ``radius`` / 6 thick) lying on the surface, each a little tilted."""
     count = len(centres)
     ang = 2 * np.pi * np.arange(sides) / sides
