@@ -94,3 +94,16 @@ def test_the_command_prints_and_writes_the_table(tmp_path, capsys):
     written = (tmp_path / "card" / "scorecard.md").read_text()
     assert "images.csv" in written and "dark:+0.030" in written
     assert (tmp_path / "card" / "scorecard.csv").read_text().startswith("predictor,n,srocc,mae")
+
+
+def test_raw_scale_baselines_are_left_out_unless_named(tmp_path, capsys):
+    rows = _rows({"exact": {}})
+    rows += [dict(r, predictor="wavelet_sigma", mapped="") for r in rows]
+    path = _write(tmp_path, "images.csv", rows)
+    assert [c["predictor"] for c in scorecard(read_rows([path]))] == ["exact"]
+    main([str(path)])
+    out = capsys.readouterr()
+    assert "| exact |" in out.out and "wavelet_sigma" not in out.out
+    assert "left out (no reading on the SSIM scale): wavelet_sigma" in out.err
+    with pytest.raises(ScorecardError, match="no finite rows of predictor 'wavelet_sigma'"):
+        scorecard(read_rows([path]), ["wavelet_sigma"])

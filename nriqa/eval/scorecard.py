@@ -140,8 +140,16 @@ def card(rows: list[dict], name: str) -> dict:
     }
 
 
+def on_ssim_scale(rows: list[dict]) -> list[str]:
+    """The predictors with a reading on the SSIM scale, in order of appearance: not raw-scale baselines
+    such as ``wavelet_sigma``, whose ``mapped`` column ``nriqa-evaluate`` leaves empty."""
+    finite = [r["predictor"] for r in rows if math.isfinite(r["mapped"]) and math.isfinite(r["true"])]
+    return list(dict.fromkeys(finite))
+
+
 def scorecard(rows: list[dict], predictors: list[str] | None = None, base: str | None = None) -> list[dict]:
-    """A :func:`card` per predictor (default: every one in ``rows``, in order of appearance).
+    """A :func:`card` per predictor (default: every one in ``rows`` that reads on the SSIM scale, in order
+    of appearance; :func:`on_ssim_scale`).
 
     With ``base``, each other card's ``newly_off`` lists its families off by more than
     :data:`FAMILY_BIAS` where the base scorer's bias is within it.
@@ -150,7 +158,10 @@ def scorecard(rows: list[dict], predictors: list[str] | None = None, base: str |
     for name in [*(predictors or []), *([base] if base else [])]:
         if name not in names:
             raise ScorecardError(f"no rows of predictor {name!r}; the rows have: {', '.join(names)}")
-    cards = [card(rows, n) for n in (predictors or names)]
+    chosen = predictors or on_ssim_scale(rows)
+    if not chosen:
+        raise ScorecardError("no predictor in these rows reads on the SSIM scale (the mapped column is empty)")
+    cards = [card(rows, n) for n in chosen]
     if base:
         own = [r for r in rows if r["predictor"] == base and math.isfinite(r["mapped"]) and math.isfinite(r["true"])]
         base_off = _off(_families(own))
@@ -183,7 +194,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default=None, help="write scorecard.{csv,md} here (default: print only)")
     args = parser.parse_args(argv)
     try:
-        cards = scorecard(read_rows(args.images), args.predictor, args.base)
+        rows = read_rows(args.images)
+        cards = scorecard(rows, args.predictor, args.base)
+        if not args.predictor:
+            raw = [n for n in dict.fromkeys(r["predictor"] for r in rows) if n not in on_ssim_scale(rows)]
+            if raw:
+                print(f"left out (no reading on the SSIM scale): {', '.join(raw)}", file=sys.stderr)
         if args.out:
             Path(args.out).mkdir(parents=True, exist_ok=True)
             write_scorecard(Path(args.out), cards, args.images)
