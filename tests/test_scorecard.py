@@ -107,3 +107,10 @@ def test_raw_scale_baselines_are_left_out_unless_named(tmp_path, capsys):
     assert "left out (no reading on the SSIM scale): wavelet_sigma" in out.err
     with pytest.raises(ScorecardError, match="no finite rows of predictor 'wavelet_sigma'"):
         scorecard(read_rows([path]), ["wavelet_sigma"])
+
+
+def test_a_family_can_be_left_out(tmp_path, capsys):
+    path = _write(tmp_path, "images.csv", _rows({"high": {"dark": 0.06}}))
+    main([str(path), "--without", "dark"])
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("| high |"))
+    assert "| 12 |" in line and "dark" not in line

@@ -17,7 +17,8 @@ set or several pooled, all on the SSIM scale (the ``mapped`` column) against the
 
 Pooled sets keep their (scene, variant) groups apart: the same variant number in two sets is two
 groups. ``python -m nriqa.eval.scorecard A/images.csv B/images.csv --base unet_fast --out DIR``
-writes ``scorecard.{csv,md}`` to ``DIR`` and prints the table.
+writes ``scorecard.{csv,md}`` to ``DIR`` and prints the table; ``--without FAMILY`` leaves a family out
+(a rule that asks the other families to hold while one is learnt).
 """
 
 from __future__ import annotations
@@ -192,9 +193,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--predictor", action="append", default=None, help="a scorer to report (repeat; default all)")
     parser.add_argument("--base", default=None, help="the scorer whose families off the others are compared with")
     parser.add_argument("--out", default=None, help="write scorecard.{csv,md} here (default: print only)")
+    parser.add_argument(
+        "--without", action="append", default=[], metavar="FAMILY", help="leave a scene family's images out (repeat)"
+    )
     args = parser.parse_args(argv)
     try:
-        rows = read_rows(args.images)
+        rows = [r for r in read_rows(args.images) if r["scene"] not in args.without]
         cards = scorecard(rows, args.predictor, args.base)
         if not args.predictor:
             raw = [n for n in dict.fromkeys(r["predictor"] for r in rows) if n not in on_ssim_scale(rows)]
