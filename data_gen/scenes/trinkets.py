@@ -152,7 +152,7 @@ def build(rng: np.random.Generator) -> dict:
     )
     pins = int(rng.integers(0, 600))
     if pins:
-        start = np.stack([*_scatter(rng, pins, half).T], 1)
+        start = _scatter(rng, pins, half)
         turn = rng.uniform(0, 2 * np.pi, pins)
         length = size * rng.uniform(4, 10) * rng.uniform(0.8, 1.2, pins)
         lift = size * 0.3

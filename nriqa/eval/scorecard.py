@@ -201,7 +201,8 @@ def main(argv: list[str] | None = None) -> None:
         rows = [r for r in read_rows(args.images) if r["scene"] not in args.without]
         cards = scorecard(rows, args.predictor, args.base)
         if not args.predictor:
-            raw = [n for n in dict.fromkeys(r["predictor"] for r in rows) if n not in on_ssim_scale(rows)]
+            scaled = on_ssim_scale(rows)
+            raw = [n for n in dict.fromkeys(r["predictor"] for r in rows) if n not in scaled]
             if raw:
                 print(f"left out (no reading on the SSIM scale): {', '.join(raw)}", file=sys.stderr)
         if args.out:
