@@ -12,7 +12,8 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
    every registered model (or ``--models``) on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
    on a ``patch-size`` square (its cost grows with 1/stride^2); a model read in windows (``unet_fast``) side by
    side and with ``overlap`` (blended windows at half-window steps). Time only: untrained weights (``--shipped``:
-   the shipped ones). ``--unfolded`` also times each map model's network as trained, batch norm not folded
+   the shipped ones; ``--device cuda``: on a GPU, the images already there as tensors). ``--unfolded`` also
+   times each map model's network as trained, batch norm not folded
    into its convolutions (:mod:`nriqa.inference.folding`), alternating with the Scorer as it runs.
 2. **memory** -- peak resident memory of scoring a 4096x4096 HDR image with ``fcnn_fast``, tiled
    (512) and untiled, each in a fresh subprocess: peak RSS (``resource.getrusage``) and its rise
@@ -79,12 +80,16 @@ ACCURACY_COLUMNS = [
 ]
 
 
-def timed(fn, repeats: int) -> float:
-    fn()  # warm-up: oneDNN picks kernels per shape
+def timed(fn, repeats: int, device: str = "cpu") -> float:
+    """Median seconds of ``fn()`` after one warm-up call; on an accelerator, waiting for its queue each time."""
+    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else (lambda: None)
+    fn()  # warm-up: oneDNN (cuDNN) picks kernels per shape
+    sync()
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
+        sync()
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
 
@@ -95,10 +100,13 @@ def throughput(args) -> str:
     for name in args.models.split(",") if args.models else list_models():
         torch.manual_seed(0)
         net = load_pretrained(name) if args.shipped else create_model(name)
-        scorer = Scorer(net, stride=8)
+        scorer = Scorer(net, stride=8, device=args.device)
         size = args.patch_size if scorer.output == "patch" else args.size
         img = (rng.random((size, size, 3)) * 4).astype(np.float32)
         twin = (rng.random((size, size, 3)) * 4).astype(np.float32) if scorer.needs_twin else None
+        if args.device != "cpu":  # images already on the device (a GPU renderer's buffers): no copies timed
+            img = torch.from_numpy(img).permute(2, 0, 1).to(args.device)
+            twin = None if twin is None else torch.from_numpy(twin).permute(2, 0, 1).to(args.device)
         if args.unfolded and scorer.output == "map":
             rows.append(_against_unfolded(name, scorer, net, img, twin, args.repeats))
             continue
@@ -108,7 +116,9 @@ def throughput(args) -> str:
             if isinstance(stride, int):
                 scorer.stride = stride
             scorer.overlap = stride == "overlap"
-            t = timed(lambda s=scorer, x=img, y=twin: s(x, hdr=True, twin=y), args.repeats if stride != 1 else 1)
+            t = timed(
+                lambda s=scorer, x=img, y=twin: s(x, hdr=True, twin=y), args.repeats if stride != 1 else 1, args.device
+            )
             rows.append([name, size, stride, f"{t * 1e3:.1f}", f"{size * size / t / 1e6:.3g}"])
             print(f"  throughput {name} stride={stride}: {t:.3f} s", file=sys.stderr)
     return markdown_table(rows, ["model", "side (px)", "stride / windows", "ms / image", "Mpix/s"])
@@ -270,6 +280,9 @@ def _parser() -> argparse.ArgumentParser:
         "--skip", default="", help="comma-separated sections to skip: throughput,memory,accuracy,range,stop,render"
     )
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
+    ap.add_argument(
+        "--device", default="cpu", help="throughput: where the Scorer runs (cuda: images already there, as tensors)"
+    )
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--models", default="", help="throughput: comma-separated registered models (default all)")
     ap.add_argument(
