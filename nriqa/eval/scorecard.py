@@ -95,6 +95,15 @@ def _srocc(pred: list[float], true: list[float]) -> float:
     return srocc(np.array(pred), np.array(true)) if len(pred) >= 2 else math.nan
 
 
+def _scored(rows: list[dict], name: str | None = None) -> list[dict]:
+    """The rows with a finite reading on the SSIM scale and a finite truth (of predictor ``name`` if given)."""
+    return [
+        r
+        for r in rows
+        if (name is None or r["predictor"] == name) and math.isfinite(r["mapped"]) and math.isfinite(r["true"])
+    ]
+
+
 def _families(own: list[dict]) -> dict[str, float]:
     """Each scene family's bias over its finite rows."""
     errors: dict[str, list[float]] = defaultdict(list)
@@ -109,7 +118,7 @@ def _off(families: dict[str, float]) -> dict[str, float]:
 
 def card(rows: list[dict], name: str) -> dict:
     """One scorer's row of :data:`COLUMNS` (``newly_off`` left empty) from its finite rows in ``rows``."""
-    own = [r for r in rows if r["predictor"] == name and math.isfinite(r["mapped"]) and math.isfinite(r["true"])]
+    own = _scored(rows, name)
     if not own:
         raise ScorecardError(f"no finite rows of predictor {name!r}")
     err = np.array([r["mapped"] - r["true"] for r in own])
@@ -144,8 +153,7 @@ def card(rows: list[dict], name: str) -> dict:
 def on_ssim_scale(rows: list[dict]) -> list[str]:
     """The predictors with a reading on the SSIM scale, in order of appearance: not raw-scale baselines
     such as ``wavelet_sigma``, whose ``mapped`` column ``nriqa-evaluate`` leaves empty."""
-    finite = [r["predictor"] for r in rows if math.isfinite(r["mapped"]) and math.isfinite(r["true"])]
-    return list(dict.fromkeys(finite))
+    return list(dict.fromkeys(r["predictor"] for r in _scored(rows)))
 
 
 def scorecard(rows: list[dict], predictors: list[str] | None = None, base: str | None = None) -> list[dict]:
@@ -164,8 +172,7 @@ def scorecard(rows: list[dict], predictors: list[str] | None = None, base: str |
         raise ScorecardError("no predictor in these rows reads on the SSIM scale (the mapped column is empty)")
     cards = [card(rows, n) for n in chosen]
     if base:
-        own = [r for r in rows if r["predictor"] == base and math.isfinite(r["mapped"]) and math.isfinite(r["true"])]
-        base_off = _off(_families(own))
+        base_off = _off(_families(_scored(rows, base)))
         for c in cards:
             if c["predictor"] != base:
                 mine = [f.split(":")[0] for f in c["families_off"].split()]
