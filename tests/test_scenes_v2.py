@@ -206,6 +206,23 @@ def test_rods_and_heightfield_meshes():
         rods_mesh("r", [[0, 0, 0]], [[0, 0, 0]], 0.01, bsdf)
 
 
+def test_prism_faces_face_outward_either_way_round():
+    from data_gen.scenes._meshes import prism_faces
+
+    sides = 7
+    ang = 2 * np.pi * np.arange(sides) / sides
+    ccw = np.stack([np.cos(ang), np.sin(ang), np.zeros(sides)], 1)  # counter-clockwise about +z
+    for ring, clockwise in ((ccw, False), (ccw[:, [1, 0, 2]], True)):  # swapping x and y runs it clockwise
+        pos = np.concatenate([ring, ring + [0.0, 0.0, 3.0]])  # moved along +z
+        faces = prism_faces(sides, 1, clockwise)
+        assert faces.shape == (4 * (sides - 1), 3)
+        a, b, c = (pos[faces[:, i]] for i in range(3))
+        normal = np.cross(b - a, c - a)
+        outward = (a + b + c) / 3 - [0.0, 0.0, 1.5]  # from the prism's centre to each face
+        assert (np.einsum("ij,ij->i", normal, outward) > 0).all()
+    assert prism_faces(3, 2).max() == 2 * 2 * 3 - 1  # prism i's vertices follow prism i - 1's
+
+
 def test_strand_fibres_stand_taper_and_become_meshes():
     from data_gen.scenes.strands import CONTROL_POINTS, _tuft, fibres
 

@@ -59,6 +59,16 @@ def rods_mesh(name: str, starts, ends, radius: float, bsdf: dict, sides: int = 6
     ang = 2 * np.pi * np.arange(sides) / sides
     ring = radius * (np.cos(ang)[None, :, None] * u[:, None] + np.sin(ang)[None, :, None] * v[:, None])  # (N, S, 3)
     pos = np.concatenate([starts[:, None] + ring, ends[:, None] + ring], axis=1)  # (N, 2S, 3)
+    return mesh_from_arrays(name, pos.reshape(-1, 3), prism_faces(sides, len(starts)), bsdf)
+
+
+def prism_faces(sides: int, count: int, clockwise: bool = False) -> np.ndarray:
+    """The triangles, facing outward, of ``count`` closed ``sides``-gonal prisms: ``(count * 4 (sides - 1), 3)``.
+
+    Prism ``i``'s vertices are ``2 * sides`` consecutive ones from ``2 * sides * i``: a ring, then the same ring
+    moved along the prism's axis. The ring runs counter-clockwise seen from the moved end (about the axis, by
+    the right hand), or clockwise with ``clockwise``; the winding follows, so one-sided BSDFs see the outside.
+    """
     k = np.arange(sides)
     k1 = (k + 1) % sides
     side = np.concatenate([np.stack([k, k1, k1 + sides], -1), np.stack([k, k1 + sides, k + sides], -1)])
@@ -68,9 +78,10 @@ def rods_mesh(name: str, starts, ends, radius: float, bsdf: dict, sides: int = 6
             np.stack([np.full(sides - 2, sides), k[1:-1] + sides, k[2:] + sides], -1),
         ]
     )
-    one = np.concatenate([side, caps])  # faces of one rod
-    faces = (one[None] + 2 * sides * np.arange(len(starts))[:, None, None]).reshape(-1, 3)
-    return mesh_from_arrays(name, pos.reshape(-1, 3), faces, bsdf)
+    one = np.concatenate([side, caps])
+    if clockwise:
+        one = one[:, [0, 2, 1]]
+    return (one[None] + 2 * sides * np.arange(count)[:, None, None]).reshape(-1, 3)
 
 
 def leaf_outline(length: float, width: float, teeth: int, points: int = 7) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 
 from data_gen.scenes import SceneSpec, register_scene
 from data_gen.scenes._exposure import exposure, scale_emitters
-from data_gen.scenes._meshes import VERTEX_COLOR, mesh_from_arrays, rods_mesh
+from data_gen.scenes._meshes import VERTEX_COLOR, mesh_from_arrays, prism_faces, rods_mesh
 from data_gen.scenes._parts import (
     METALS,
     PATH_FAMILY,
@@ -85,18 +85,8 @@ def coins_mesh(
     rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2] = sz * cx, cz * cx, -sx
     rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2] = sz * sx, cz * sx, cx
     pos = np.einsum("nij,vj->nvi", rot, unit) * radii[:, None, None] + centres[:, None]
-    k = np.arange(sides)
-    k1 = (k + 1) % sides
-    side = np.concatenate([np.stack([k, k1 + sides, k1], -1), np.stack([k, k + sides, k1 + sides], -1)])
-    caps = np.concatenate(
-        [
-            np.stack([np.zeros(sides - 2, int), k[1:-1], k[2:]], -1),
-            np.stack([np.full(sides - 2, sides), k[2:] + sides, k[1:-1] + sides], -1),
-        ]
-    )
-    one = np.concatenate([side, caps])
-    faces = (one[None] + 2 * sides * np.arange(count)[:, None, None]).reshape(-1, 3)
-    return mesh_from_arrays(name, pos.reshape(-1, 3), faces, bsdf)
+    # the ring runs from +x towards +z: clockwise seen from above (+y), the end it is moved to
+    return mesh_from_arrays(name, pos.reshape(-1, 3), prism_faces(sides, count, clockwise=True), bsdf)
 
 
 def _scatter(rng: np.random.Generator, count: int, half: float) -> np.ndarray:
