@@ -7,6 +7,7 @@ stability tests.
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
 import subprocess
 import sys
@@ -90,6 +91,15 @@ def striped_dataset(synthetic_dataset, tmp_path_factory) -> Path:
 
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def load_script(relative: str):
+    """A script of the repository (``benchmarks/scorer.py``, ``train.py``) loaded as a module, to call its ``main``."""
+    path = REPO / relative
+    spec = importlib.util.spec_from_file_location(f"script_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 import torch
+from conftest import load_script
 
 from nriqa.core.display import apply_display
 from nriqa.data.albedo import texture
@@ -133,11 +131,7 @@ def test_shift_hsv_per_image_equals_one_shift_each():
 
 
 def load_train_step():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "train_step.py"
-    spec = importlib.util.spec_from_file_location("bench_train_step", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/train_step.py")
 
 
 def test_train_step_benchmark_prints_its_table(synthetic_dataset, capsys, one_thread):

@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+from conftest import load_script
 
 mi = pytest.importorskip("mitsuba")
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.usefixtures("one_thread")
@@ -19,9 +15,7 @@ def test_pixel_renderer_benchmark_prints_both_ratios(capsys):
     ok, reason = probe_llvm()
     if not ok:
         pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
-    spec = importlib.util.spec_from_file_location("bench_pixel_renderer", REPO / "benchmarks" / "pixel_renderer.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script("benchmarks/pixel_renderer.py")
     previous = mi.variant()
     init_worker(LLVM_VARIANT, 1)
     try:

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
+from conftest import load_script
 
 mi = pytest.importorskip("mitsuba")
 
@@ -13,14 +11,9 @@ from nriqa.inference.pretrained import list_pretrained  # noqa: E402
 from nriqa.inference.scorer import Scorer  # noqa: E402
 from nriqa.render.backend import SCALAR_VARIANT, init_worker  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
-
 
 def load_benchmark():
-    spec = importlib.util.spec_from_file_location("bench_scorer", REPO / "benchmarks" / "scorer.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/scorer.py")
 
 
 @pytest.mark.usefixtures("one_thread")

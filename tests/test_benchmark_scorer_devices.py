@@ -2,23 +2,18 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from conftest import load_script
 
 from nriqa.io.exr import write_exr
 
-REPO = Path(__file__).resolve().parents[1]
-
 
 def load_benchmark():
-    spec = importlib.util.spec_from_file_location("bench_scorer_devices", REPO / "benchmarks" / "scorer_devices.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("benchmarks/scorer_devices.py")
 
 
 def _renders(folder: Path) -> None:

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from pathlib import Path
 
 import lightning as L
 import pytest
 import torch
-from conftest import REPO, make_dataset
+from conftest import REPO, load_script, make_dataset
 from hydra import compose, initialize_config_dir
 from omegaconf import DictConfig
 from torch import nn
@@ -129,9 +128,7 @@ def test_unknown_scene_is_a_one_line_error(synthetic_dataset, tmp_path):
 
 
 def test_missing_dataset_exits_with_one_line(tmp_path):
-    spec = importlib.util.spec_from_file_location("train_script", REPO / "train.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+    script = load_script("train.py")
     cfg = compose_cfg(tmp_path, tmp_path / "none")
     # __wrapped__ is train.py's main without Hydra's command-line runner (which prints the message)
     with pytest.raises(SystemExit) as info:
