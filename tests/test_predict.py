@@ -189,6 +189,23 @@ def test_cli_plain_output_is_deterministic_and_flags_override(tmp_path, weights,
     np.testing.assert_array_equal(read_exr(tmp_path / "o1" / "a_map.exr"), read_exr(tmp_path / "o2" / "a_map.exr"))
 
 
+def test_cli_device_cpu_is_the_default_and_an_unusable_device_is_one_line(tmp_path, weights, capsys):
+    write_exr(tmp_path / "a.exr", rgb(scale=1.0))
+    args = [str(tmp_path / "a.exr"), "--weights-dir", str(weights), "--model", "fcnn_fast", "--no-figures", "--out"]
+    assert predict.main([*args, str(tmp_path / "o1")]) == 0
+    assert predict.main([*args, str(tmp_path / "o2"), "--device", "cpu"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0] == lines[1]
+    refused = [("gpu0", "is not a torch device")]
+    if not torch.cuda.is_available():
+        refused.append(("cuda", "not usable here"))
+    for device, why in refused:
+        assert predict.main([*args, str(tmp_path / "o3"), "--device", device]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and why in err[0] and f"--device {device}" in err[0].replace("'", "")
+    assert not (tmp_path / "o3").exists()
+
+
 # --- truncated EXR: stdout carries only results ---------------------------------------------
 
 

@@ -1,7 +1,8 @@
 """``nriqa-predict``: score rendered images without their reference, a quality map and a pooled score per file.
 
     nriqa-predict render.exr more/*.png [--model fcnn_fast | --checkpoint best.ckpt] [--out predictions]
-                  [--json] [--hdr | --ldr] [--tile 512] [--stride 8] [--threads N] [--no-figures]
+                  [--json] [--hdr | --ldr] [--tile 512] [--stride 8] [--threads N] [--device cuda]
+                  [--no-figures]
 
 (``python predict.py ...`` in a checkout runs the same.) Per input, written atomically into ``--out``:
 ``<stem>_map.exr`` (the predicted map as float32, replicated to RGB) and ``<stem>_figure.png`` (the
@@ -127,6 +128,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="torch CPU threads (default: torch's choice; 1 is faster for small images on a busy CPU)",
     )
+    ap.add_argument(
+        "--device",
+        default="cpu",
+        help="where the network runs: cpu (default) or a torch device such as cuda, cuda:1 (a GPU: the same "
+        "scores to about 2e-4, many times faster on large images)",
+    )
     ap.add_argument("--no-figures", action="store_true", help="write only the map EXR")
     ap.add_argument(
         "--progress",
@@ -248,6 +255,24 @@ def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
     return None
 
 
+def _device_problem(name: str) -> str | None:
+    """Why ``--device name`` cannot run the network here (one line), or None."""
+    import torch
+
+    try:
+        device = torch.device(name)
+    except (RuntimeError, ValueError):
+        return f"--device {name!r} is not a torch device; use cpu or cuda"
+    if device.type == "cpu":
+        return None
+    try:
+        torch.zeros(1, device=device)
+    except (RuntimeError, AssertionError, ValueError) as exc:  # no such device, or torch built without it
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return f"--device {name}: not usable here ({why}); run without --device to score on the CPU"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 1 some file failed, 2 usage/model error)."""
     ap = build_parser()
@@ -258,8 +283,12 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.threads:
         torch.set_num_threads(args.threads)
+    problem = _device_problem(args.device)
+    if problem:
+        print(_one_line(ap.prog, problem), file=sys.stderr, flush=True)
+        return 2
     try:
-        opts = {"tile": args.tile, "stride": args.stride, "overlap": args.overlap}
+        opts = {"tile": args.tile, "stride": args.stride, "overlap": args.overlap, "device": args.device}
         if args.checkpoint is not None:
             scorer = Scorer.from_checkpoint(args.checkpoint, **opts)
         else:
