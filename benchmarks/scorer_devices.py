@@ -27,7 +27,7 @@ sys.path.insert(0, str(REPO))
 
 from benchmarks.machine import machine_line  # noqa: E402
 from nriqa.inference.pretrained import load_pretrained  # noqa: E402
-from nriqa.inference.scorer import Scorer  # noqa: E402
+from nriqa.inference.scorer import Scorer, device_problem  # noqa: E402
 from nriqa.io.atomic import write_text_atomic  # noqa: E402
 from nriqa.io.exr import read_exr  # noqa: E402
 from nriqa.io.tables import markdown_table  # noqa: E402
@@ -99,8 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("reports/scorer_devices"))
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
-    if torch.device(args.device).type == "cuda" and not torch.cuda.is_available():
-        print(f"scorer_devices: no CUDA device here; run it where --device {args.device} exists", file=sys.stderr)
+    problem = device_problem(args.device)
+    if problem:
+        print(f"scorer_devices: {problem}", file=sys.stderr)
         return 2
     images = sorted(args.images.rglob("*.exr"))
     if not images:

@@ -52,4 +52,4 @@ def test_refusals_are_one_line_and_exit_2(tmp_path, capsys):
     if not torch.cuda.is_available():
         assert bench.main([str(tmp_path / "empty"), "--device", "cuda"]) == 2
         err = capsys.readouterr().err.strip()
-        assert "no CUDA device here" in err and "\n" not in err
+        assert "not usable here" in err and "\n" not in err

@@ -255,35 +255,17 @@ def _twin_problem(scorer, args: argparse.Namespace) -> str | None:
     return None
 
 
-def _device_problem(name: str) -> str | None:
-    """Why ``--device name`` cannot run the network here (one line), or None."""
-    import torch
-
-    try:
-        device = torch.device(name)
-    except (RuntimeError, ValueError):
-        return f"--device {name!r} is not a torch device; use cpu or cuda"
-    if device.type == "cpu":
-        return None
-    try:
-        torch.zeros(1, device=device)
-    except (RuntimeError, AssertionError, ValueError) as exc:  # no such device, or torch built without it
-        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        return f"--device {name}: not usable here ({why}); run without --device to score on the CPU"
-    return None
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 1 some file failed, 2 usage/model error)."""
     ap = build_parser()
     args = ap.parse_args(argv)
     import torch
 
-    from nriqa.inference.scorer import Scorer
+    from nriqa.inference.scorer import Scorer, device_problem
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    problem = _device_problem(args.device)
+    problem = device_problem(args.device)
     if problem:
         print(_one_line(ap.prog, problem), file=sys.stderr, flush=True)
         return 2

@@ -27,7 +27,7 @@ from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
 from nriqa.inference.interval import LOOP_KINDS, ScoreInterval, loop_card_key
 
-__all__ = ["PIXEL_FILTERS", "Scorer", "ScoreResult", "ScorerInputError"]
+__all__ = ["PIXEL_FILTERS", "Scorer", "ScoreResult", "ScorerInputError", "device_problem"]
 
 # The pixel (reconstruction) filters a scorer can have learnt renders through: "box", each sample counted for
 # its own pixel (every in-house dataset), and "gaussian", Mitsuba's film default (standard deviation 0.5 pixel).
@@ -578,3 +578,19 @@ def _as_batch(image: np.ndarray | Tensor) -> tuple[Tensor, bool]:
             raise ScorerInputError(f"integer images must be uint8 or uint16, got {dtype}; convert to float")
         t = t.float() / scale
     return t, single
+
+
+def device_problem(name: str) -> str | None:
+    """Why a scorer cannot run on the torch device ``name`` here (one line, for ``--device`` options), or None."""
+    try:
+        device = torch.device(name)
+    except (RuntimeError, ValueError):
+        return f"--device {name!r} is not a torch device; use cpu or cuda"
+    if device.type == "cpu":
+        return None
+    try:
+        torch.zeros(1, device=device)
+    except (RuntimeError, AssertionError, ValueError) as exc:  # no such device, or torch built without it
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return f"--device {name}: not usable here ({why}); use --device cpu"
+    return None
