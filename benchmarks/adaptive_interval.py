@@ -2,6 +2,7 @@
 
     python benchmarks/adaptive_interval.py --data data/v2_x64 --out reports/adaptive_interval
         [--scorer unet_fast] [--twin-scorer dual_fast] [--max-spp 1024] [--seeds 2] [--scenes cornell,...]
+        [--loops uniform]
 
 The shipped intervals (``ScoreResult.low``/``high``) were calibrated on uniformly sampled renders; ``render_adaptive``
 evens the noise out by placing samples where the map expects error, and ``sure=True`` stops on the low end there
@@ -56,7 +57,14 @@ def parse(argv):
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--spp-per-step", type=int, default=4)
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
+    ap.add_argument(
+        "--loops", default=",".join(LOOPS), help=f"comma-separated loop kinds to run (default: {','.join(LOOPS)})"
+    )
     args = ap.parse_args(argv)
+    args.loops = [k.strip() for k in args.loops.split(",") if k.strip()]
+    unknown = sorted(set(args.loops) - set(LOOPS)) or ([] if args.loops else ["(none)"])
+    if unknown:
+        fail(f"--loops {', '.join(unknown)}: not a loop kind; give some of {', '.join(LOOPS)}")
     if not (args.data / "manifest.json").is_file():
         fail(f"{args.data}: no manifest.json; give a dataset rendered by nriqa-data (it keeps its references)")
     if args.seeds < 1 or args.max_spp < 2 * args.spp_per_step or args.spp_per_step < 1:
@@ -183,7 +191,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for family, v, scene, reference in scenes:
         for kind, scorer in scorers.items():
-            for loop in LOOPS:
+            for loop in args.loops:
                 for k in range(args.seeds):
                     for r in loop_rows(scene, reference, scorer, loop, SEED_SPACING * (k + 1), args):
                         rows.append({"scorer": kind, "loop": loop, "family": family, "variant": v, "seed": k, **r})

@@ -29,6 +29,8 @@ def run(*argv: str, env=None) -> subprocess.CompletedProcess:
         (["--scorer", "dual_fast"], "--scorer dual_fast: a two-buffer scorer; pass it as --twin-scorer"),
         (["--twin-scorer", "unet_fast"], "--twin-scorer unet_fast: no two-buffer scorer"),
         (["--scorer", "fcnn"], "--scorer fcnn: no calibrated interval"),
+        (["--loops", "uniform,spiral"], "--loops spiral: not a loop kind"),
+        (["--loops", ","], "--loops (none): not a loop kind"),
     ],
 )
 def test_bad_options_are_one_line(synthetic_dataset, argv, message):
@@ -68,3 +70,20 @@ def test_rows_and_coverage_on_the_tiny_preset(tiny, tmp_path):
     assert len(overall) == 4 and sum(int(s["rows"]) for s in overall) == len(rows)
     assert all(0.0 <= float(s["true >= low"]) <= 1.0 for s in summary)
     assert "true >= low" in (out / "adaptive_interval.md").read_text()
+
+
+def test_one_kind_of_loop(tiny, tmp_path):
+    """--loops uniform runs the uniform loops only (the rows a uniform loop interval is fitted on)."""
+    pytest.importorskip("mitsuba")
+    from nriqa.render.backend import llvm_env, probe_llvm
+
+    ok, reason = probe_llvm()
+    if not ok:
+        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
+    out = tmp_path / "out"
+    argv = ["--data", str(tiny), "--out", str(out), "--scenes", "cornell", "--max-spp", "16", "--seeds", "1"]
+    proc = run(*argv, "--loops", "uniform", env={**os.environ, **llvm_env()})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with open(out / "rows.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows and {(r["scorer"], r["loop"]) for r in rows} == {("single", "uniform")}
