@@ -1,4 +1,5 @@
-"""What a benchmark ran on, for the line above its table: CPU model, torch threads, torch version."""
+"""What a benchmark runs on: the line above its table (CPU model, torch threads, torch version), and waiting for a
+device's queue so that a timing holds the work it started."""
 
 from __future__ import annotations
 
@@ -22,3 +23,9 @@ def cpu_name() -> str:
 def machine_line() -> str:
     """``"<CPU>, <n> torch threads, torch <version>"``."""
     return f"{cpu_name()}, {torch.get_num_threads()} torch threads, torch {torch.__version__}"
+
+
+def sync(device: str | torch.device) -> None:
+    """Wait until ``device`` has finished the work queued on it (CUDA runs asynchronously); on the CPU nothing."""
+    if torch.device(device).type == "cuda":
+        torch.cuda.synchronize(device)

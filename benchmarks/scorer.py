@@ -48,7 +48,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.machine import machine_line  # noqa: E402
+from benchmarks.machine import machine_line, sync  # noqa: E402
 from benchmarks.render_loops import early_stop, render, scorer_range  # noqa: E402
 from nriqa.eval.accuracy import (  # noqa: E402  # noqa: E402
     AccuracyError,
@@ -82,14 +82,13 @@ ACCURACY_COLUMNS = [
 
 def timed(fn, repeats: int, device: str = "cpu") -> float:
     """Median seconds of ``fn()`` after one warm-up call; on an accelerator, waiting for its queue each time."""
-    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else (lambda: None)
     fn()  # warm-up: oneDNN (cuDNN) picks kernels per shape
-    sync()
+    sync(device)
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
-        sync()
+        sync(device)
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
 

@@ -25,7 +25,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.machine import machine_line  # noqa: E402
+from benchmarks.machine import machine_line, sync  # noqa: E402
 from nriqa.inference.pretrained import load_pretrained  # noqa: E402
 from nriqa.inference.scorer import Scorer, device_problem  # noqa: E402
 from nriqa.io.atomic import write_text_atomic  # noqa: E402
@@ -45,8 +45,7 @@ def _scored(scorer: Scorer, image: np.ndarray, twin: np.ndarray | None, device: 
     """(score, map, seconds) of one call; the accelerator's queue is waited for inside the timing."""
     t0 = time.perf_counter()
     result = scorer(image, hdr=True, twin=twin)
-    if torch.device(device).type == "cuda":
-        torch.cuda.synchronize()
+    sync(device)
     return float(result.score), np.asarray(result.map), time.perf_counter() - t0
 
 
