@@ -163,8 +163,8 @@ def test_images_taken_as_ldr_get_the_ldr_calibration():
 
 def test_the_shipped_ldr_calibrations():
     scorer = Scorer.from_pretrained()
-    assert scorer.ldr_interval is not None and sum(scorer.ldr_interval.counts) == 4776
-    assert "rule X2" in scorer.ldr_interval.source
+    assert scorer.ldr_interval is not None and sum(scorer.ldr_interval.counts) == 8010
+    assert "rule LR" in scorer.ldr_interval.source
     dual = Scorer.from_pretrained("dual_fast").ldr_interval
     assert dual is not None and sum(dual.counts) == 5916 and "rule X4" in dual.source
     assert Scorer.from_pretrained("fcnn_fast").ldr_interval is None
