@@ -59,9 +59,10 @@ class Anchors:
 NO_ANCHORS = Anchors()
 
 
-def check_anchors(anchors: Anchors, pairs: list[ImagePair]) -> Anchors:
+def check_anchors(anchors: Anchors, pairs: list[ImagePair], converged: bool = False) -> Anchors:
     """``anchors``, checked against the training ``pairs``: each family one of theirs, each root one they were
-    read from, and at least one image left to learn from its target.
+    read from, and at least one image left to learn from its target (unless ``converged``: converged patches,
+    :mod:`nriqa.data.converged`, learn their target on anchored images too).
 
     Raises:
         ValueError: one line saying which setting is wrong and what it names.
@@ -76,7 +77,7 @@ def check_anchors(anchors: Anchors, pairs: list[ImagePair]) -> Anchors:
         one_root = Anchors(roots=(root,))
         if not any(one_root(p.record) for p in pairs):
             raise ValueError(f"data.anchor_data: {root} holds none of the training images; name one of paths.data_dir")
-    if anchors and all(anchors(p.record) for p in pairs):
+    if anchors and not converged and all(anchors(p.record) for p in pairs):
         what = "data.anchor_scenes names every training family" if not anchors.roots else "every training image is anchored"
-        raise ValueError(f"{what}: leave at least one image to learn from its target")
+        raise ValueError(f"{what}: leave at least one image to learn from its target (or set data.converged_p)")
     return anchors

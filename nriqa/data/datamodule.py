@@ -11,6 +11,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
+from nriqa.data.converged import check_converged_p
 from nriqa.data.anchors import Anchors
 from nriqa.data.ladders import check_span
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
@@ -79,6 +80,9 @@ class NRIQADataModule(L.LightningDataModule):
             0 (the default) draws none and leaves every other draw as it was. Images the manifest says were
             rendered through a filter (data_gen's ``pixel_filter``) are never filtered again, so such
             renders and box-filtered ones can be learnt together.
+        converged_p: the share of training patches whose input is the reference itself, learnt at its target (1
+            everywhere), anchored sets included (:mod:`nriqa.data.converged`); 0 (the default) draws none and
+            leaves every other draw as it was. Single-image models only.
         anchor_scenes: scene families whose training patches learn the starting network's map instead of
             their SSIM target (with ``init_from``: :class:`nriqa.training.module.NRIQAModule`'s teacher),
             so a fine-tune on a few scenes of them keeps what the start learnt from many while the other
@@ -119,6 +123,7 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_lines: float = 0.0,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
+        converged_p: float = 0.0,
         anchor_scenes: Sequence[str] = (),
         anchor_data: Sequence[str | os.PathLike] = (),
         ladder_pairs: bool = False,
@@ -151,6 +156,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
+        self.converged_p = check_converged_p(converged_p, self.twins)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -210,6 +216,7 @@ class NRIQADataModule(L.LightningDataModule):
             anchors=self.anchors,
             ladder_pairs=self.ladder_pairs,
             ladder_span=self.ladder_span,
+            converged_p=self.converged_p,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

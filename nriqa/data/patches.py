@@ -18,6 +18,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
+from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
 from nriqa.data.pixel_filter import (
     SIGMA_RANGE,
     apply_pixel_filter,
@@ -95,13 +96,15 @@ class TrainPatches(Dataset):
     The image is picked (uniformly, or by :meth:`set_weights`), then the position, then (with
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
     (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`; never on images the manifest
-    says were rendered through one), each applied to noisy image, twin and reference alike, and the target
+    says were rendered through one), each applied to noisy image, twin and reference alike (with ``converged_p``
+    the noisy image of a share of the items is the reference itself: :mod:`nriqa.data.converged`), and the target
     is computed from the textured, filtered, displayed, jittered pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
     the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchors`` each item
-    is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`): the
+    is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`)
+    and the item is not a converged one (a reference learns its own target, 1): the
     training module then learns the starting network's map there instead of the target
     (:class:`nriqa.training.module.NRIQAModule`). With ``ladder_pairs`` every odd item ``k`` is item ``k - 1``'s
     cut, display, jitter, texture and filter taken from another rung of its ladder within ``ladder_span``
@@ -130,12 +133,12 @@ class TrainPatches(Dataset):
         anchors: Anchors = NO_ANCHORS,
         ladder_pairs: bool = False,
         ladder_span: int = 2,
+        converged_p: float = 0.0,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
         if ladder_pairs and length % 2:
             raise ValueError(f"ladder pairs need an even number of items per epoch, got {length}")
-        self.anchors = check_anchors(anchors, pairs)
         check_patch_size(pairs, patch_size)
         check_pairs(pairs, display is not None, twins, albedo_pass)
         self.pairs = pairs
@@ -152,6 +155,8 @@ class TrainPatches(Dataset):
         self.albedo_pass = albedo_pass
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
+        self.converged_p = check_converged_p(converged_p, twins)
+        self.anchors = check_anchors(anchors, pairs, converged=self.converged_p > 0)
         self.cdf: Tensor | None = None
         self.ladder_pairs = bool(ladder_pairs)
         span = check_span(ladder_span)
@@ -212,10 +217,11 @@ class TrainPatches(Dataset):
             else None
         )
         albedo = sample_albedo(g, self.albedo_p)
-        sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn last: the rest as before
+        sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn after: the rest as before
         if pair.record.pixel_filter != "box":
             sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
-        return Draw(pair, y, x, display, jitter, albedo, sigma, image)
+        converged = sample_converged(g, self.converged_p)  # drawn last
+        return Draw(pair, y, x, display, jitter, albedo, sigma, image, converged)
 
     def __getitem__(self, index: int) -> tuple[Tensor, ...]:
         return self.__getitems__([index])[0]
@@ -233,6 +239,7 @@ class TrainPatches(Dataset):
             torch.stack([src[j][:, d.y : d.y + size, d.x : d.x + size] for src, d in zip(sources, draws)])
             for j in range(len(sources[0]))
         ]
+        members = converged_batch([i for i, d in enumerate(draws) if d.converged], members)
         members = albedo_batch(draws, members, self.albedo_lines)
         members = pixel_filter_batch(draws, members)
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
@@ -242,7 +249,7 @@ class TrainPatches(Dataset):
         target = compute_target(self.target, noisy, ref)
         inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
         if self.anchors:
-            anchored = [torch.tensor(self.anchors(d.pair.record)) for d in draws]
+            anchored = [torch.tensor(self.anchors(d.pair.record) and not d.converged) for d in draws]
             return [(inputs[i].contiguous(), target[i], anchored[i]) for i in range(len(draws))]
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
 
@@ -259,6 +266,7 @@ class Draw:
     albedo: int | None = None  # the seed of the patch's albedo texture (nriqa.data.albedo), or none
     pixel_sigma: float | None = None  # the pixel filter's standard deviation (nriqa.data.pixel_filter), or none
     image: int = -1  # the index of ``pair`` among the training images
+    converged: bool = False  # the input is the reference itself (nriqa.data.converged)
 
 
 def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
