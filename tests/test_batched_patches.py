@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 import torch
 from conftest import load_script
@@ -25,11 +27,22 @@ def make_dm(root, **kw) -> NRIQADataModule:
     return dm
 
 
+def draws_but(draw, *skip: str) -> tuple:
+    """A training item's random choices (:class:`nriqa.data.patches.Draw`) but the fields ``skip``, comparable."""
+    return tuple(
+        draw.pair.record if f.name == "pair" else getattr(draw, f.name)
+        for f in dataclasses.fields(draw)
+        if f.name not in skip
+    )
+
+
 def one_by_one(ds, k):
     """Item ``k`` from the single-image functions, in the order the draws are made."""
     g = item_generator(ds.seed, k)
     pair = ds.pick(g)
     members = cut_all(pair, g, ds.patch_size, ds.twins)
+    if ds.draw(k).converged:  # drawn last, applied first: the input is the reference
+        members[0] = members[1]
     display = ds.display.sample(g) if ds.display is not None else TONEMAP
     albedo = ds.draw(k).albedo  # drawn last, applied first (to the linear radiance)
     if albedo is not None:
@@ -63,6 +76,7 @@ def one_by_one(ds, k):
         {"albedo_p": 0.5, "albedo_lines": 0.5},
         {"pixel_filter_p": 0.5},
         {"display": MIX, "twins": True, "albedo_p": 0.5, "pixel_filter_p": 0.5},
+        {"display": MIX, "albedo_p": 0.5, "pixel_filter_p": 0.5, "converged_p": 0.5},
     ],
 )
 def test_a_batch_equals_its_items_made_one_by_one(synthetic_dataset, kw):

@@ -40,19 +40,24 @@ def test_bad_options_are_one_line(synthetic_dataset, argv, message):
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()] and message in proc.stderr
 
 
-def test_rows_and_coverage_on_the_tiny_preset(tiny, tmp_path):
+def rows_on_the_tiny_preset(tiny, out: Path, max_spp: int, *extra: str) -> list[dict]:
+    """The rows.csv of a run on the tiny preset's cornell scene, one seed (skipped without llvm_ad_rgb)."""
     pytest.importorskip("mitsuba")
     from nriqa.render.backend import llvm_env, probe_llvm
 
     ok, reason = probe_llvm()
     if not ok:
         pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
-    out = tmp_path / "out"
-    argv = ["--data", str(tiny), "--out", str(out), "--scenes", "cornell", "--max-spp", "32", "--seeds", "1"]
-    proc = run(*argv, "--twin-scorer", "dual_fast", env={**os.environ, **llvm_env()})
+    argv = ["--data", str(tiny), "--out", str(out), "--scenes", "cornell", "--max-spp", str(max_spp), "--seeds", "1"]
+    proc = run(*argv, *extra, env={**os.environ, **llvm_env()})
     assert proc.returncode == 0, proc.stderr[-2000:]
     with open(out / "rows.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
+        return list(csv.DictReader(fh))
+
+
+def test_rows_and_coverage_on_the_tiny_preset(tiny, tmp_path):
+    out = tmp_path / "out"
+    rows = rows_on_the_tiny_preset(tiny, out, 32, "--twin-scorer", "dual_fast")
     assert {(r["scorer"], r["loop"]) for r in rows} == {
         (s, loop) for s in ("single", "two-buffer") for loop in ("uniform", "adaptive")
     }
@@ -74,16 +79,5 @@ def test_rows_and_coverage_on_the_tiny_preset(tiny, tmp_path):
 
 def test_one_kind_of_loop(tiny, tmp_path):
     """--loops uniform runs the uniform loops only (the rows a uniform loop interval is fitted on)."""
-    pytest.importorskip("mitsuba")
-    from nriqa.render.backend import llvm_env, probe_llvm
-
-    ok, reason = probe_llvm()
-    if not ok:
-        pytest.skip(f"llvm_ad_rgb unusable here: {reason}")
-    out = tmp_path / "out"
-    argv = ["--data", str(tiny), "--out", str(out), "--scenes", "cornell", "--max-spp", "16", "--seeds", "1"]
-    proc = run(*argv, "--loops", "uniform", env={**os.environ, **llvm_env()})
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    with open(out / "rows.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
+    rows = rows_on_the_tiny_preset(tiny, tmp_path / "out", 16, "--loops", "uniform")
     assert rows and {(r["scorer"], r["loop"]) for r in rows} == {("single", "uniform")}
