@@ -148,8 +148,14 @@ def test_cli_bad_files_do_not_stop_the_others(tmp_path, weights):
     files = [good[0], *bad[:4], *good[1:], *bad[4:]]
     proc = run_predict_py(tmp_path, weights, *files, "--json", "--out", "out", "--no-figures")
     assert proc.returncode == 1
-    errors = proc.stderr.strip().splitlines()
+    lines = proc.stderr.strip().splitlines()
+    warnings = [line for line in lines if line.startswith("predict.py: warning: ")]
+    errors = [line for line in lines if line not in warnings]
     assert len(errors) == len(bad), proc.stderr  # one line per bad file, no traceback
+    assert warnings == [
+        "predict.py: warning: dirty.exr: 2 of 720 pixels are NaN or infinite; scored as if NaN and "
+        "-Inf were 0, +Inf white"
+    ]
     for line, name in zip(errors, bad):
         assert line.startswith("predict.py: error: ") and name in line
     assert "smaller than the 14x14 receptive field" in errors[bad.index("small.exr")]
@@ -352,3 +358,31 @@ def test_cli_overlap_reads_the_default_in_blended_windows(tmp_path, capsys):
     expected = Scorer.from_pretrained(overlap=True)(image, hdr=True).map
     np.testing.assert_allclose(blend, expected, atol=1e-6)
     assert np.abs(blend - side).max() > 1e-3
+
+
+def test_cli_names_non_finite_pixels_and_refuses_an_image_with_nothing_else(tmp_path, weights, twin_weights):
+    """A few NaN/Inf pixels: scored, with a warning line and the count in --json; every pixel: one error line."""
+    partly, wholly = rgb(), np.full((24, 30, 3), np.nan, np.float32)
+    partly[:3, :5] = np.nan
+    partly[5, 5] = np.inf
+    write_exr(tmp_path / "partly.exr", partly)
+    write_exr(tmp_path / "wholly.exr", wholly)
+    write_exr(tmp_path / "clean.exr", rgb(seed=1))
+    proc = run_predict_py(tmp_path, weights, "partly.exr", "wholly.exr", "clean.exr", "--json", "--no-figures")
+    assert proc.returncode == 1
+    rows = [json.loads(line) for line in proc.stdout.strip().splitlines()]
+    assert [(r["path"], r["nonfinite_pixels"]) for r in rows] == [("partly.exr", 16), ("clean.exr", 0)]
+    assert all(np.isfinite(r["score"]) for r in rows)
+    warning, error = proc.stderr.strip().splitlines()
+    assert warning == (
+        "predict.py: warning: partly.exr: 16 of 720 pixels are NaN or infinite; scored as if NaN and -Inf were 0, "
+        "+Inf white"
+    )
+    assert error.startswith("predict.py: error: wholly.exr: every pixel is NaN or infinite")
+    assert not (tmp_path / "predictions" / "wholly_map.exr").exists()
+    write_exr(tmp_path / "image.exr", rgb(40, 48, seed=3))
+    write_exr(tmp_path / "twin.exr", np.full((40, 48, 3), np.inf, np.float32))
+    twin_args = ["--model", "unet_fast_twin", "--weights-dir", str(twin_weights)]
+    proc = _predict(tmp_path, "image.exr", "--twin", "twin.exr", *twin_args)
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert "every pixel of its twin twin.exr is NaN or infinite" in proc.stderr.strip()

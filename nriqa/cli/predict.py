@@ -150,8 +150,22 @@ def _emit(line: str, stream) -> None:
     stream.flush()
 
 
-def _one_line(prog: str, msg: str) -> str:
-    return f"{prog}: error: {' '.join(msg.split())}"
+def _one_line(prog: str, msg: str, kind: str = "error") -> str:
+    return f"{prog}: {kind}: {' '.join(msg.split())}"
+
+
+def warn(msg: str) -> None:
+    """A warning line on stderr (the file is still scored)."""
+    _emit(_one_line(Path(sys.argv[0]).name, msg, "warning"), sys.stderr)  # argparse's default prog
+
+
+def _pixels(image: np.ndarray) -> int:
+    return int(image.shape[0] * image.shape[1])
+
+
+def nonfinite_pixels(image: np.ndarray) -> int:
+    """Pixels ``(H, W, C)`` with a NaN or infinite value in any channel."""
+    return int((~np.isfinite(image)).any(axis=-1).sum())
 
 
 def score_file(
@@ -169,12 +183,20 @@ def score_file(
     """
     import torch
 
+    from nriqa.inference.scorer import ScorerInputError
     from nriqa.io.exr import write_exr
 
     start = time.perf_counter()
     image, file_hdr = read_image(name)
     twin = read_image(twin_name)[0] if twin_name is not None else None
     albedo = read_image(albedo_name)[0] if albedo_name is not None else None
+    bad = {n: (nonfinite_pixels(x), _pixels(x)) for n, x in ((name, image), (twin_name, twin)) if x is not None}
+    for n, (count, total) in bad.items():
+        if count == total:
+            which = "every pixel" if n == name else f"every pixel of its twin {n}"
+            raise ScorerInputError(f"{which} is NaN or infinite: nothing to score; check the renderer's output")
+        if count:
+            warn(f"{n}: {count} of {total} pixels are NaN or infinite; scored as if NaN and -Inf were 0, +Inf white")
     hdr = file_hdr if args.hdr is None else args.hdr
     t0 = time.perf_counter()
     result = scorer(image, hdr=hdr, twin=twin, albedo=albedo)
@@ -207,6 +229,7 @@ def score_file(
         "height": int(image.shape[0]),
         "width": int(image.shape[1]),
         "hdr": hdr,
+        "nonfinite_pixels": bad[name][0],
         "seconds": round(seconds, 4),
         "total_seconds": round(time.perf_counter() - start, 4),
         "map": str(map_path),
