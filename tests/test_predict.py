@@ -386,3 +386,13 @@ def test_cli_names_non_finite_pixels_and_refuses_an_image_with_nothing_else(tmp_
     proc = _predict(tmp_path, "image.exr", "--twin", "twin.exr", *twin_args)
     assert proc.returncode == 1 and proc.stdout == ""
     assert "every pixel of its twin twin.exr is NaN or infinite" in proc.stderr.strip()
+
+
+def test_cli_spread_is_in_the_json_only_when_asked(tmp_path):
+    write_exr(tmp_path / "a.exr", rgb(48, 64, seed=5))
+    plain = json.loads(_predict(tmp_path, "a.exr", "--json").stdout)
+    asked = json.loads(_predict(tmp_path, "a.exr", "--json", "--spread").stdout)
+    assert plain["spread"] is None and asked["spread"] >= 0 and asked["score"] == plain["score"]
+    assert (asked["low"], asked["high"]) != (plain["low"], plain["high"])  # the spread interval's ends
+    proc = _predict(tmp_path, "a.exr", "--spread", "--model", "dual_fast", "--twin", "a.exr")
+    assert proc.returncode == 2 and "single-image SSIM map models" in proc.stderr.strip()

@@ -26,6 +26,7 @@ from nriqa.core.tonemap import tonemap
 from nriqa.errors import NriqaError
 from nriqa.inference.folding import fold_batchnorm
 from nriqa.inference.interval import LOOP_KINDS, ScoreInterval, loop_card_key
+from nriqa.inference.spread import SpreadInterval, score_spread, view_scores
 
 __all__ = ["PIXEL_FILTERS", "Scorer", "ScoreResult", "ScorerInputError", "device_problem"]
 
@@ -52,6 +53,9 @@ class ScoreResult:
         low, high: where the true mean SSIM lies, at the level of the scorer's calibrated
             :class:`~nriqa.inference.interval.ScoreInterval` (shipped weights carry one on their card:
             90 %, measured coverage there); like ``score`` in type and shape, ``None`` without a calibration.
+            With ``spread`` and a spread interval, images taken as HDR get that interval's ends instead.
+        spread: with ``Scorer(..., spread=True)``, the standard deviation of the score over the image's eight
+            flips and turns (:mod:`nriqa.inference.spread`), like ``score`` in type and shape; else ``None``.
     """
 
     map: np.ndarray | Tensor
@@ -60,6 +64,7 @@ class ScoreResult:
     hdr: bool | list[bool]
     low: float | np.ndarray | Tensor | None = None
     high: float | np.ndarray | Tensor | None = None
+    spread: float | np.ndarray | Tensor | None = None
 
 
 class Scorer:
@@ -93,6 +98,11 @@ class Scorer:
             rates (a two-buffer scorer's: the halves' score carried to the whole image). The loops'
             sure stops use their low end where one is given (card ``score_interval_loop_uniform`` /
             ``_adaptive``); other kinds keep the result's ``low``. Results of a call do not change.
+        spread: also score the image's eight flips and turns and return the score's spread over them
+            (:mod:`nriqa.inference.spread`; nine passes of the network instead of one); single-image SSIM map
+            models only. The score stays the plain view's.
+        spread_interval: with ``spread``, the interval for images taken as HDR whose offsets scale with the
+            spread (card ``score_interval_spread``), which then replaces ``interval`` for them.
         pixel_filter: the pixel filter of the renders the network learnt to read (:data:`PIXEL_FILTERS`):
             ``"box"`` (each sample counted for its own pixel; every shipped file but one) or ``"gaussian"``
             (Mitsuba's film default, e.g. ``unet_fast_gaussian``). :meth:`from_pretrained` takes it from the
@@ -173,6 +183,8 @@ class Scorer:
         interval: ScoreInterval | None = None,
         ldr_interval: ScoreInterval | None = None,
         loop_intervals: Mapping[str, ScoreInterval] | None = None,
+        spread: bool = False,
+        spread_interval: SpreadInterval | None = None,
         pixel_filter: str = "box",
     ):
         output = getattr(net, "output", None)
@@ -218,6 +230,16 @@ class Scorer:
                 raise ValueError("a score interval is for SSIM map models; the patch model predicts an MAE")
         if ldr_interval is not None and interval is None:
             raise ValueError("ldr_interval refines interval for LDR input; give interval too")
+        if spread_interval is not None and not isinstance(spread_interval, SpreadInterval):
+            raise TypeError(f"spread_interval must be a SpreadInterval, got {type(spread_interval).__name__}")
+        if spread_interval is not None and interval is None:
+            raise ValueError("spread_interval refines interval for HDR input; give interval too")
+        if spread and (self.quantity != "ssim" or self.needs_twin or self.needs_albedo):
+            raise ValueError(
+                "spread=True (nriqa-predict --spread) is for single-image SSIM map models, no twin or albedo pass"
+            )
+        self.spread = bool(spread)
+        self.spread_interval = spread_interval
         self.interval = interval
         self.ldr_interval = ldr_interval
         self.loop_intervals = loop_intervals
@@ -234,8 +256,9 @@ class Scorer:
 
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
         The card's calibrated ``score_interval`` (and ``score_interval_ldr``, ``score_interval_loop_uniform``,
-        ``score_interval_loop_adaptive``), if it has them, become the scorer's ``interval`` (and
-        ``ldr_interval``, ``loop_intervals``) unless given (``interval=None`` turns them all off); the card's
+        ``score_interval_loop_adaptive``, ``score_interval_spread``), if it has them, become the scorer's
+        ``interval`` (and ``ldr_interval``, ``loop_intervals``, ``spread_interval``) unless given
+        (``interval=None`` turns them all off); the card's
         ``pixel_filter`` (``"box"`` if it has none) becomes the scorer's.
         """
         from nriqa.inference import DEFAULT_WEIGHTS
@@ -251,6 +274,8 @@ class Scorer:
                     kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
                 loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
                 kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
+                entry = card.get("score_interval_spread")
+                kwargs.setdefault("spread_interval", SpreadInterval.from_dict(entry) if entry is not None else None)
             except ValueError as exc:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
@@ -310,13 +335,19 @@ class Scorer:
             if self.exact_flat:
                 self._flat_to_one(qmap, batch, flags)
             scores = qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
+            spread = None
+            if self.spread:
+                spread = score_spread(view_scores(lambda views: self._pooled(views, flags * 4), batch)).to(out_device)
         qmap = qmap.to(out_device)
         scores = scores.to(out_device)
         if is_numpy:
             qmap, scores = qmap.cpu().numpy(), scores.cpu().numpy()
+            spread = None if spread is None else spread.cpu().numpy()
         low = high = None
         if self.interval is not None:
-            ends = self.interval_ends(np.asarray(scores if is_numpy else scores.cpu().numpy()), flags)
+            plain = np.asarray(scores if is_numpy else scores.cpu().numpy())
+            spreads = None if spread is None else np.asarray(spread if is_numpy else spread.cpu().numpy())
+            ends = self.interval_ends(plain, flags, spreads)
             if is_numpy:
                 low, high = (v.astype(scores.dtype) for v in ends)
             else:
@@ -324,16 +355,29 @@ class Scorer:
         if single:
             if low is not None:
                 low, high = float(low[0]), float(high[0])
-            return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0], low, high)
-        return ScoreResult(qmap, scores, self.quantity, flags, low, high)
+            one = None if spread is None else float(spread[0])
+            return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0], low, high, one)
+        return ScoreResult(qmap, scores, self.quantity, flags, low, high, spread)
 
-    def interval_ends(self, scores: np.ndarray, hdr: list[bool]) -> tuple[np.ndarray, np.ndarray]:
-        """Ends of the calibrated interval for pooled ``scores`` of images taken as HDR or not (``hdr``)."""
+    def _pooled(self, batch: Tensor, flags: list[bool]) -> Tensor:
+        """``(B,)`` pooled scores of a batch of single images (the views of :mod:`nriqa.inference.spread`)."""
+        qmap = self._map(batch, flags)
+        if self.exact_flat:
+            self._flat_to_one(qmap, batch, flags)
+        return qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
+
+    def interval_ends(
+        self, scores: np.ndarray, hdr: list[bool], spread: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Ends of the calibrated interval for pooled ``scores`` of images taken as HDR or not (``hdr``); with
+        their ``spread`` and a spread interval, the HDR images' ends are that interval's."""
         values = np.asarray(scores, dtype=np.float64)
         low, high = self.interval(values)
+        ldr = ~np.asarray(hdr, dtype=bool)
         if self.ldr_interval is not None:
-            ldr = ~np.asarray(hdr, dtype=bool)
             low[ldr], high[ldr] = (end[ldr] for end in self.ldr_interval(values))
+        if spread is not None and self.spread_interval is not None:
+            low[~ldr], high[~ldr] = (end[~ldr] for end in self.spread_interval(values, np.asarray(spread, np.float64)))
         return low, high
 
     def _extra_batch(
