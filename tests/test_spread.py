@@ -118,3 +118,21 @@ def test_the_command_fits_checks_and_holds_out_families(synthetic_dataset, tmp_p
         assert spread_cli.main(argv) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_the_command_reads_an_external_folder_by_its_pattern(synthetic_dataset, tmp_path, capsys):
+    import shutil
+
+    for scene in ("alpha", "beta", "gamma"):
+        (tmp_path / "ext" / scene).mkdir(parents=True)
+        shutil.copy(synthetic_dataset / scene / "reference.exr", tmp_path / "ext" / scene / "reference.exr")
+        for spp in (1, 4, 16, 64):
+            shutil.copy(
+                synthetic_dataset / scene / f"path-{spp:04d}-test.exr", tmp_path / "ext" / scene / f"path - {spp}.exr"
+            )
+    ext = str(tmp_path / "ext")
+    assert spread_cli.main(["cv", ext, "--level", "0.5", "--min-count", "4"]) == 2  # no manifest, no pattern
+    assert "no manifest.json" in capsys.readouterr().err
+    argv = ["cv", ext, "--pattern", "{scene}/{algorithm} - {spp}", "--level", "0.5", "--min-count", "4"]
+    assert spread_cli.main(argv) == 0
+    assert "| all (each family held out): spread | 12 |" in capsys.readouterr().out

@@ -10,7 +10,8 @@ learnt) is scored by the weights as shipped, through the package tone map, with 
 and turns; its true mean SSIM is measured against the dataset's reference as ``nriqa-evaluate`` does. ``fit``
 calibrates a :class:`~nriqa.inference.spread.SpreadInterval` on them (``--write``: into the weights' card as
 ``score_interval_spread``); ``check`` measures its coverage beside the card's ``score_interval``, pooled and per
-family; ``cv`` fits it with each family held out in turn and covers that family. Bad input is one line, exit 2.
+family; ``cv`` fits it with each family held out in turn and covers that family. ``--pattern`` (and ``--reference``)
+read folders without a manifest as ``nriqa-evaluate`` does (the external test set). Bad input is one line, exit 2.
 """
 
 from __future__ import annotations
@@ -36,19 +37,27 @@ class SpreadError(NriqaError):
     """Datasets or options the spread calibration cannot use."""
 
 
-def scored(roots: list[str], weights: str, dir: str | None = None) -> dict[str, np.ndarray]:
-    """``family``, ``true``, ``score``, ``spread`` (and the card interval's ``low``, ``high``) of every test image."""
+def scored(
+    roots: list[str], weights: str, dir: str | None = None, pattern: str | None = None, reference: str | None = None
+) -> dict[str, np.ndarray]:
+    """``family``, ``true``, ``score``, ``spread`` (and the card interval's ``low``, ``high``) of every test image.
+
+    A root without ``manifest.json`` is read as an external folder of renders by ``pattern`` and ``reference``
+    (:mod:`nriqa.io.external`), as ``nriqa-evaluate`` reads one."""
     from nriqa.eval.dataset import load_dataset, records_of
     from nriqa.inference.scorer import Scorer
+    from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE
 
     scorer = Scorer.from_pretrained(weights, dir=dir, spread=True)
     if scorer.interval is None:
         raise SpreadError(f"weights {weights!r} carry no score_interval to compare with")
     cols: dict[str, list] = {k: [] for k in ("family", "true", "score", "spread", "low", "high")}
     for root in roots:
-        if not (Path(root) / "manifest.json").is_file():
-            raise SpreadError(f"{root}: no manifest.json; give datasets rendered by nriqa-data (with references)")
-        items = load_dataset(*records_of(root), twins=False).items
+        if not (Path(root) / "manifest.json").is_file() and pattern is None:
+            raise SpreadError(f"{root}: no manifest.json; give a dataset rendered by nriqa-data, or --pattern")
+        items = load_dataset(
+            *records_of(root, pattern or DEFAULT_PATTERN, reference or DEFAULT_REFERENCE), twins=False
+        ).items
         for start in range(0, len(items), BATCH):
             chunk = items[start : start + BATCH]
             by_shape: dict[tuple, list] = {}
@@ -104,6 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("data", nargs="+", help="dataset roots (manifest.json, references)")
         p.add_argument("--weights", default="unet_fast", help="shipped weights (default unet_fast)")
         p.add_argument("--dir", default=None, help="folder of the weights (default: the shipped ones)")
+        p.add_argument("--pattern", default=None, help="external folders: name pattern, as nriqa-evaluate's")
+        p.add_argument("--reference", default=None, help="external folders: reference glob, as nriqa-evaluate's")
         if cmd in ("fit", "cv"):
             p.add_argument("--level", type=float, default=0.9, help="two-sided level (default 0.9)")
         if cmd == "fit":
@@ -127,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.cmd == "fit" and not (args.out or args.write):
             raise SpreadError("say where the interval goes: --out FILE.json or --write (the card)")
-        rows = scored(args.data, args.weights, args.dir)
+        rows = scored(args.data, args.weights, args.dir, args.pattern, args.reference)
         if args.cmd == "fit":
             iv = SpreadInterval.fit(rows["score"], rows["true"], rows["spread"], level=args.level, source=args.source)
             entry = iv.to_dict()
