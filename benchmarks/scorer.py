@@ -11,7 +11,8 @@ Sections, each a Markdown table in ``<out>/scorer.md`` (and printed), plots as P
 1. **throughput** -- Mpix/s of :class:`nriqa.inference.scorer.Scorer` (tone map + forward + pooling) for
    every registered model (or ``--models``) on a ``size``-square HDR image, and the patch model at strides 1/4/8/16
    on a ``patch-size`` square (its cost grows with 1/stride^2); a model read in windows (``unet_fast``) side by
-   side and with ``overlap`` (blended windows at half-window steps). Time only: untrained weights (``--shipped``:
+   side and with ``overlap`` (blended windows at half-window steps), and single-image map models with ``spread``
+   (the eight flips and turns scored too). Time only: untrained weights (``--shipped``:
    the shipped ones; ``--device cuda``: on a GPU, the images already there as tensors). ``--unfolded`` also
    times each map model's network as trained, batch norm not folded
    into its convolutions (:mod:`nriqa.inference.folding`), alternating with the Scorer as it runs.
@@ -109,12 +110,16 @@ def throughput(args) -> str:
         if args.unfolded and scorer.output == "map":
             rows.append(_against_unfolded(name, scorer, net, img, twin, args.repeats))
             continue
-        # the patch model at several strides; a model read in windows side by side and overlapping (blended)
+        # the patch model at several strides; a model read in windows side by side and overlapping (blended); a
+        # single-image map model with its spread over the eight flips and turns (nriqa.inference.spread)
         strides = (1, 4, 8, 16) if scorer.output == "patch" else ("-", "overlap") if scorer.window else ("-",)
+        if scorer.output == "map" and not (scorer.needs_twin or scorer.needs_albedo):
+            strides = (*strides, "spread")
         for stride in strides:
             if isinstance(stride, int):
                 scorer.stride = stride
             scorer.overlap = stride == "overlap"
+            scorer.spread = stride == "spread"
             t = timed(
                 lambda s=scorer, x=img, y=twin: s(x, hdr=True, twin=y), args.repeats if stride != 1 else 1, args.device
             )

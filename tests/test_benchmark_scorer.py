@@ -208,12 +208,18 @@ def test_throughput_section_times_folded_against_unfolded(tmp_path):
 
 
 @pytest.mark.usefixtures("one_thread")
-def test_throughput_section_times_windows_side_by_side_and_overlapping(tmp_path):
+def test_throughput_section_times_windows_side_by_side_overlapping_and_the_spread(tmp_path):
     load_benchmark().main(
         ["--out", str(tmp_path), "--skip", "memory,accuracy,range,stop,render", "--models", "unet_fast,fcnn_fast"]
         + ["--size", "128", "--repeats", "1", "--shipped"]
     )
     rows = [line.split("|")[1:-1] for line in (tmp_path / "scorer.md").read_text().splitlines() if "| 128 |" in line]
     kinds = [(r[0].strip(), r[2].strip()) for r in rows]
-    assert kinds == [("unet_fast", "-"), ("unet_fast", "overlap"), ("fcnn_fast", "-")]
+    assert kinds == [
+        ("unet_fast", "-"),
+        ("unet_fast", "overlap"),
+        ("unet_fast", "spread"),
+        ("fcnn_fast", "-"),
+        ("fcnn_fast", "spread"),
+    ]
     assert all(float(r[4]) > 0 for r in rows)
