@@ -240,6 +240,22 @@ def _write(out: str | None, title: str, table: list[dict], columns=COLUMNS, stem
         print(f"wrote {folder / f'{stem}.md'}")
 
 
+def save_interval(entry: dict, out: str | None, card: tuple[str, str, str | None] | None) -> None:
+    """Write a fitted interval's ``entry`` to the JSON file ``out`` and/or into a card, ``(weights, key, dir)``;
+    print where, then the entry."""
+    import json
+
+    from nriqa.inference.pretrained import update_card
+
+    if out:
+        write_text_atomic(Path(out), json.dumps(entry, indent=2) + "\n")
+        print(f"wrote {out}")
+    if card:
+        weights, key, folder = card
+        print(f"wrote {update_card(weights, {key: entry}, folder)}")
+    print(json.dumps(entry))
+
+
 def _targets(text: str) -> list[float]:
     try:
         targets = [float(x) for x in text.split(",")]
@@ -294,9 +310,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import json
-
-    from nriqa.inference.pretrained import update_card
 
     ap = build_parser()
     args = ap.parse_args(argv)
@@ -312,13 +325,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise CoverageError("say where the interval goes: --out FILE.json or --weights NAME")
             p, t = _arrays(rows)
             interval = ScoreInterval.fit(p, t, level=args.level, min_count=args.min_count, source=args.source)
-            entry = interval.to_dict()
-            if args.out:
-                write_text_atomic(Path(args.out), json.dumps(entry, indent=2) + "\n")
-                print(f"wrote {args.out}")
-            if args.weights:
-                print(f"wrote {update_card(args.weights, {_card_key(args): entry}, args.dir)}")
-            print(json.dumps(entry))
+            save_interval(interval.to_dict(), args.out, args.weights and (args.weights, _card_key(args), args.dir))
         elif args.cmd in ("check", "stops"):
             if bool(args.interval) == bool(args.weights):
                 raise CoverageError("give the interval to check: --interval FILE.json or --weights NAME (one)")

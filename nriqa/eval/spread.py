@@ -25,10 +25,9 @@ import numpy as np
 import torch
 
 from nriqa.errors import NriqaError
-from nriqa.eval.coverage import COLUMNS, _row, _write
+from nriqa.eval.coverage import COLUMNS, _row, _write, save_interval
 from nriqa.inference.interval import ScoreInterval
 from nriqa.inference.spread import SpreadInterval
-from nriqa.io.atomic import write_text_atomic
 
 BATCH = 64  # images of one size scored together
 
@@ -131,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from nriqa.inference.pretrained import load_card, update_card
+    from nriqa.inference.pretrained import load_card
 
     ap = build_parser()
     args = ap.parse_args(argv)
@@ -141,13 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = scored(args.data, args.weights, args.dir, args.pattern, args.reference)
         if args.cmd == "fit":
             iv = SpreadInterval.fit(rows["score"], rows["true"], rows["spread"], level=args.level, source=args.source)
-            entry = iv.to_dict()
-            if args.out:
-                write_text_atomic(Path(args.out), json.dumps(entry, indent=2) + "\n")
-                print(f"wrote {args.out}")
-            if args.write:
-                print(f"wrote {update_card(args.weights, {'score_interval_spread': entry}, args.dir)}")
-            print(json.dumps(entry))
+            save_interval(iv.to_dict(), args.out, args.write and (args.weights, "score_interval_spread", args.dir))
         elif args.cmd == "check":
             if args.interval:
                 entry = json.loads(Path(args.interval).read_text())

@@ -29,7 +29,7 @@ import numpy as np
 
 from nriqa.errors import NriqaError
 
-__all__ = ["ScoreInterval", "IntervalError", "EDGES", "LOOP_KINDS", "loop_card_key"]
+__all__ = ["ScoreInterval", "IntervalError", "EDGES", "LOOP_KINDS", "conformal_ranks", "loop_card_key"]
 
 #: default band edges of the predicted score: finer where most renders end (near convergence)
 EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, 0.98, 1.0)
@@ -44,6 +44,14 @@ def loop_card_key(kind: str) -> str:
     if kind not in LOOP_KINDS:
         raise ValueError(f"loop intervals are for loop kinds {list(LOOP_KINDS)}, got {kind!r}")
     return f"score_interval_loop_{kind}"
+
+
+def conformal_ranks(n: int, level: float) -> tuple[int, int]:
+    """1-based ranks of the low and high ends among ``n`` sorted calibration residuals for a two-sided ``level``:
+    ``floor(a (n + 1))`` and ``ceil((1 - a) (n + 1))``, ``a = (1 - level) / 2``; below 1 or above ``n``: no bound."""
+    a = (1.0 - level) / 2.0
+    # ranks as exact as the level allows: (1 - 0.8) / 2 * 10 must be 1, not 0.999...
+    return math.floor(a * (n + 1) + 1e-9), math.ceil((1.0 - a) * (n + 1) - 1e-9)
 
 
 class IntervalError(NriqaError):
@@ -113,13 +121,11 @@ class ScoreInterval:
             edges.pop(cut)
             counts[min(i, j)] += counts.pop(cut)
         band = _band_of(np.clip(p, 0.0, 1.0), edges)
-        a = (1.0 - level) / 2.0
         low, high = [], []
         for k in range(len(edges) - 1):
             r = np.sort(t[band == k] - p[band == k])
             n = r.size
-            # ranks as exact as the level allows: (1 - 0.8) / 2 * 10 must be 1, not 0.999...
-            lo_rank, hi_rank = math.floor(a * (n + 1) + 1e-9), math.ceil((1.0 - a) * (n + 1) - 1e-9)
+            lo_rank, hi_rank = conformal_ranks(n, level)
             low.append(float(r[lo_rank - 1]) if lo_rank >= 1 else -math.inf)
             high.append(float(r[hi_rank - 1]) if hi_rank <= n else math.inf)
         return cls(float(level), tuple(edges), tuple(low), tuple(high), tuple(int(c) for c in counts), source)

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from nriqa.inference.interval import IntervalError
+from nriqa.inference.interval import IntervalError, conformal_ranks
 
 __all__ = ["SpreadInterval", "VIEWS", "view_scores", "score_spread"]
 
@@ -101,8 +101,8 @@ class SpreadInterval:
             raise IntervalError(f"{p.size} scores, {t.size} true values, {s.size} spreads: give one of each per image")
         if not (np.isfinite(p).all() and np.isfinite(t).all() and np.isfinite(s).all()) or (s < 0).any():
             raise IntervalError("scores, true values and spreads must be finite, spreads >= 0")
-        a, n = (1.0 - level) / 2.0, p.size
-        lo_rank, hi_rank = math.floor(a * (n + 1) + 1e-9), math.ceil((1.0 - a) * (n + 1) - 1e-9)
+        n = p.size
+        lo_rank, hi_rank = conformal_ranks(n, level)
         if lo_rank < 1 or hi_rank > n:
             raise IntervalError(f"{n} calibration images are too few for a {level:.0%} interval")
         floor = float(np.median(s))
