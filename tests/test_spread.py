@@ -83,9 +83,13 @@ def test_the_scorer_gives_a_spread_only_when_asked_and_its_interval_to_hdr_image
     lo, hi = asked.spread_interval(b.score.astype(np.float64), b.spread.astype(np.float64))
     np.testing.assert_allclose(b.low, lo, atol=1e-6)
     np.testing.assert_allclose(b.high, hi, atol=1e-6)
-    ldr = hdr[0] / hdr[0].max()  # within [0, 1]: taken as LDR, keeps the LDR calibration
+    ldr = hdr[0] / hdr[0].max()  # within [0, 1]: taken as LDR, gets the LDR spread calibration
     one = asked(ldr)
-    assert isinstance(one.spread, float) and (one.low, one.high) == (plain(ldr).low, plain(ldr).high)
+    assert isinstance(one.spread, float)
+    assert (one.low, one.high) == pytest.approx(asked.spread_ldr_interval(one.score, one.spread), abs=1e-6)
+    assert (one.low, one.high) != (plain(ldr).low, plain(ldr).high)
+    no_ldr = Scorer.from_pretrained(spread=True, spread_ldr_interval=None)(ldr)  # without one: score_interval_ldr
+    assert (no_ldr.low, no_ldr.high) == (plain(ldr).low, plain(ldr).high)
     t = asked(torch.from_numpy(hdr).permute(0, 3, 1, 2))
     assert isinstance(t.spread, torch.Tensor) and torch.allclose(t.spread, torch.from_numpy(b.spread), atol=1e-6)
     with pytest.raises(ValueError, match="single-image SSIM map models"):
@@ -93,9 +97,11 @@ def test_the_scorer_gives_a_spread_only_when_asked_and_its_interval_to_hdr_image
     assert Scorer.from_pretrained(interval=None, spread=True).spread_interval is None
 
 
-def test_the_shipped_spread_calibration():
-    iv = Scorer.from_pretrained().spread_interval
+def test_the_shipped_spread_calibrations():
+    scorer = Scorer.from_pretrained()
+    iv, ldr = scorer.spread_interval, scorer.spread_ldr_interval
     assert iv is not None and iv.count == 2670 and iv.level == 0.9 and "rule R73" in iv.source
+    assert ldr is not None and ldr.count == 8010 and "rule R74" in ldr.source
     assert Scorer.from_pretrained("fcnn_fast").spread_interval is None
 
 
@@ -110,6 +116,15 @@ def test_the_command_fits_checks_and_holds_out_families(synthetic_dataset, tmp_p
     assert "| all: spread | 12 |" in text and "| all: score_interval | 12 |" in text and "family gamma" in text
     assert spread_cli.main(["cv", data, "--level", "0.5", "--min-count", "4"]) == 0
     assert "all (each family held out): spread" in capsys.readouterr().out
+    # through two displays: twice the rows, scored as LDR, beside score_interval_ldr
+    argv = ["check", data, "--interval", str(out), "--display", "srgb", "--display", "gamma22:8"]
+    assert spread_cli.main(argv) == 0
+    text = capsys.readouterr().out
+    assert "| all: spread | 24 |" in text and "| all: score_interval_ldr | 24 |" in text
+    assert spread_cli.main(["check", data, "--display", "srgb", "--weights", "fcnn_fast"]) == 2
+    assert "no score_interval_ldr" in capsys.readouterr().err
+    assert spread_cli.main(["check", data, "--display", "sepia"]) == 2
+    assert "--display" in capsys.readouterr().err
     for argv, message in (
         (["fit", data], "--out FILE.json or --write"),
         (["check", str(tmp_path)], "no manifest.json"),

@@ -10,8 +10,10 @@ learnt) is scored by the weights as shipped, through the package tone map, with 
 and turns; its true mean SSIM is measured against the dataset's reference as ``nriqa-evaluate`` does. ``fit``
 calibrates a :class:`~nriqa.inference.spread.SpreadInterval` on them (``--write``: into the weights' card as
 ``score_interval_spread``); ``check`` measures its coverage beside the card's ``score_interval``, pooled and per
-family; ``cv`` fits it with each family held out in turn and covers that family. ``--pattern`` (and ``--reference``)
-read folders without a manifest as ``nriqa-evaluate`` does (the external test set). Bad input is one line, exit 2.
+family; ``cv`` fits it with each family held out in turn and covers that family. With ``--display`` (repeatable)
+the images are shown through those displays and scored as LDR input, for ``score_interval_spread_ldr`` beside
+``score_interval_ldr``. ``--pattern`` (and ``--reference``) read folders without a manifest as ``nriqa-evaluate``
+does (the external test set). Bad input is one line, exit 2.
 """
 
 from __future__ import annotations
@@ -37,26 +39,38 @@ class SpreadError(NriqaError):
 
 
 def scored(
-    roots: list[str], weights: str, dir: str | None = None, pattern: str | None = None, reference: str | None = None
+    roots: list[str],
+    weights: str,
+    dir: str | None = None,
+    pattern: str | None = None,
+    reference: str | None = None,
+    displays: list[str] = (),
 ) -> dict[str, np.ndarray]:
     """``family``, ``true``, ``score``, ``spread`` (and the card interval's ``low``, ``high``) of every test image.
 
     A root without ``manifest.json`` is read as an external folder of renders by ``pattern`` and ``reference``
-    (:mod:`nriqa.io.external`), as ``nriqa-evaluate`` reads one."""
+    (:mod:`nriqa.io.external`), as ``nriqa-evaluate`` reads one. With ``displays`` (``nriqa-evaluate --display``
+    specs) every image is shown through each of them, image and reference alike, and scored as LDR input; the card
+    interval compared is then ``score_interval_ldr``."""
+    from nriqa.core.display import Display
     from nriqa.eval.dataset import load_dataset, records_of
     from nriqa.inference.scorer import Scorer
     from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE
 
     scorer = Scorer.from_pretrained(weights, dir=dir, spread=True)
-    if scorer.interval is None:
-        raise SpreadError(f"weights {weights!r} carry no score_interval to compare with")
+    card_interval = scorer.ldr_interval if displays else scorer.interval
+    if card_interval is None:
+        raise SpreadError(f"weights {weights!r} carry no {'score_interval_ldr' if displays else 'score_interval'}")
+    try:
+        shows = [Display.parse(d) for d in displays] or [None]
+    except ValueError as exc:
+        raise SpreadError(f"--display: {exc}") from None
     cols: dict[str, list] = {k: [] for k in ("family", "true", "score", "spread", "low", "high")}
     for root in roots:
         if not (Path(root) / "manifest.json").is_file() and pattern is None:
             raise SpreadError(f"{root}: no manifest.json; give a dataset rendered by nriqa-data, or --pattern")
-        items = load_dataset(
-            *records_of(root, pattern or DEFAULT_PATTERN, reference or DEFAULT_REFERENCE), twins=False
-        ).items
+        found = records_of(root, pattern or DEFAULT_PATTERN, reference or DEFAULT_REFERENCE)
+        items = [item for show in shows for item in load_dataset(*found, twins=False, display=show).items]
         for start in range(0, len(items), BATCH):
             chunk = items[start : start + BATCH]
             by_shape: dict[tuple, list] = {}
@@ -65,7 +79,7 @@ def scored(
             for group in by_shape.values():
                 res = scorer(torch.stack([i.ldr for i in group]), hdr=False)
                 score, spread = res.score.cpu().numpy(), res.spread.cpu().numpy()
-                low, high = scorer.interval(score.astype(np.float64))  # the tone-map interval, as for EXR input
+                low, high = card_interval(score.astype(np.float64))  # the card's, as for this kind of input
                 for i, item in enumerate(group):
                     for key, value in zip(cols, (item.record.scene, item.true, score[i], spread[i], low[i], high[i])):
                         cols[key].append(value)
@@ -114,6 +128,14 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--dir", default=None, help="folder of the weights (default: the shipped ones)")
         p.add_argument("--pattern", default=None, help="external folders: name pattern, as nriqa-evaluate's")
         p.add_argument("--reference", default=None, help="external folders: reference glob, as nriqa-evaluate's")
+        p.add_argument(
+            "--display",
+            action="append",
+            default=[],
+            metavar="D",
+            help="score every image through this display as LDR input (repeat; nriqa-evaluate's specs, e.g. srgb+2); "
+            "fit --write then writes score_interval_spread_ldr",
+        )
         if cmd in ("fit", "cv"):
             p.add_argument("--level", type=float, default=0.9, help="two-sided level (default 0.9)")
         if cmd == "fit":
@@ -137,19 +159,21 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.cmd == "fit" and not (args.out or args.write):
             raise SpreadError("say where the interval goes: --out FILE.json or --write (the card)")
-        rows = scored(args.data, args.weights, args.dir, args.pattern, args.reference)
+        rows = scored(args.data, args.weights, args.dir, args.pattern, args.reference, args.display)
+        key = "score_interval_spread_ldr" if args.display else "score_interval_spread"
         if args.cmd == "fit":
             iv = SpreadInterval.fit(rows["score"], rows["true"], rows["spread"], level=args.level, source=args.source)
-            save_interval(iv.to_dict(), args.out, args.write and (args.weights, "score_interval_spread", args.dir))
+            save_interval(iv.to_dict(), args.out, args.write and (args.weights, key, args.dir))
         elif args.cmd == "check":
             if args.interval:
                 entry = json.loads(Path(args.interval).read_text())
             else:
-                entry = load_card(args.weights, args.dir)[0].get("score_interval_spread")
+                entry = load_card(args.weights, args.dir)[0].get(key)
                 if entry is None:
-                    raise SpreadError(f"weights {args.weights!r} carry no score_interval_spread; give --interval")
-            title = f"Coverage of {args.weights}'s spread interval beside its score_interval"
-            _write(args.out, title, check(rows, SpreadInterval.from_dict(entry)), COLUMNS, "spread")
+                    raise SpreadError(f"weights {args.weights!r} carry no {key}; give --interval")
+            card_key = "score_interval_ldr" if args.display else "score_interval"
+            title = f"Coverage of {args.weights}'s spread interval beside its {card_key}"
+            _write(args.out, title, check(rows, SpreadInterval.from_dict(entry), card_key), COLUMNS, "spread")
         else:
             title = f"Coverage of {args.weights}'s spread interval, each family held out"
             _write(args.out, title, leave_one_out(rows, args.level, args.min_count), COLUMNS, "spread")

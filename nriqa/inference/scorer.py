@@ -53,7 +53,7 @@ class ScoreResult:
         low, high: where the true mean SSIM lies, at the level of the scorer's calibrated
             :class:`~nriqa.inference.interval.ScoreInterval` (shipped weights carry one on their card:
             90 %, measured coverage there); like ``score`` in type and shape, ``None`` without a calibration.
-            With ``spread`` and a spread interval, images taken as HDR get that interval's ends instead.
+            With ``spread`` and a spread interval (for HDR, or for LDR input), its ends instead.
         spread: with ``Scorer(..., spread=True)``, the standard deviation of the score over the image's eight
             flips and turns (:mod:`nriqa.inference.spread`), like ``score`` in type and shape; else ``None``.
     """
@@ -103,6 +103,8 @@ class Scorer:
             models only. The score stays the plain view's.
         spread_interval: with ``spread``, the interval for images taken as HDR whose offsets scale with the
             spread (card ``score_interval_spread``), which then replaces ``interval`` for them.
+        spread_ldr_interval: the same for images taken as LDR (card ``score_interval_spread_ldr``), replacing
+            ``ldr_interval`` for them.
         pixel_filter: the pixel filter of the renders the network learnt to read (:data:`PIXEL_FILTERS`):
             ``"box"`` (each sample counted for its own pixel; every shipped file but one) or ``"gaussian"``
             (Mitsuba's film default, e.g. ``unet_fast_gaussian``). :meth:`from_pretrained` takes it from the
@@ -185,6 +187,7 @@ class Scorer:
         loop_intervals: Mapping[str, ScoreInterval] | None = None,
         spread: bool = False,
         spread_interval: SpreadInterval | None = None,
+        spread_ldr_interval: SpreadInterval | None = None,
         pixel_filter: str = "box",
     ):
         output = getattr(net, "output", None)
@@ -230,16 +233,18 @@ class Scorer:
                 raise ValueError("a score interval is for SSIM map models; the patch model predicts an MAE")
         if ldr_interval is not None and interval is None:
             raise ValueError("ldr_interval refines interval for LDR input; give interval too")
-        if spread_interval is not None and not isinstance(spread_interval, SpreadInterval):
-            raise TypeError(f"spread_interval must be a SpreadInterval, got {type(spread_interval).__name__}")
-        if spread_interval is not None and interval is None:
-            raise ValueError("spread_interval refines interval for HDR input; give interval too")
+        for given in (spread_interval, spread_ldr_interval):
+            if given is not None and not isinstance(given, SpreadInterval):
+                raise TypeError(f"a spread interval must be a SpreadInterval, got {type(given).__name__}")
+        if (spread_interval is not None or spread_ldr_interval is not None) and interval is None:
+            raise ValueError("spread intervals refine interval; give interval too")
         if spread and (self.quantity != "ssim" or self.needs_twin or self.needs_albedo):
             raise ValueError(
                 "spread=True (nriqa-predict --spread) is for single-image SSIM map models, no twin or albedo pass"
             )
         self.spread = bool(spread)
         self.spread_interval = spread_interval
+        self.spread_ldr_interval = spread_ldr_interval
         self.interval = interval
         self.ldr_interval = ldr_interval
         self.loop_intervals = loop_intervals
@@ -256,8 +261,9 @@ class Scorer:
 
         Without a name: the default single-image weights, :data:`nriqa.inference.DEFAULT_WEIGHTS`.
         The card's calibrated ``score_interval`` (and ``score_interval_ldr``, ``score_interval_loop_uniform``,
-        ``score_interval_loop_adaptive``, ``score_interval_spread``), if it has them, become the scorer's
-        ``interval`` (and ``ldr_interval``, ``loop_intervals``, ``spread_interval``) unless given
+        ``score_interval_loop_adaptive``, ``score_interval_spread``, ``score_interval_spread_ldr``), if it has them,
+        become the scorer's ``interval`` (and ``ldr_interval``, ``loop_intervals``, ``spread_interval``,
+        ``spread_ldr_interval``) unless given
         (``interval=None`` turns them all off); the card's
         ``pixel_filter`` (``"box"`` if it has none) becomes the scorer's.
         """
@@ -274,8 +280,12 @@ class Scorer:
                     kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
                 loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
                 kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
-                entry = card.get("score_interval_spread")
-                kwargs.setdefault("spread_interval", SpreadInterval.from_dict(entry) if entry is not None else None)
+                for key, arg in (
+                    ("score_interval_spread", "spread_interval"),
+                    ("score_interval_spread_ldr", "spread_ldr_interval"),
+                ):
+                    entry = card.get(key)
+                    kwargs.setdefault(arg, SpreadInterval.from_dict(entry) if entry is not None else None)
             except ValueError as exc:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
@@ -370,14 +380,16 @@ class Scorer:
         self, scores: np.ndarray, hdr: list[bool], spread: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """Ends of the calibrated interval for pooled ``scores`` of images taken as HDR or not (``hdr``); with
-        their ``spread`` and a spread interval, the HDR images' ends are that interval's."""
+        their ``spread``, the ends of the spread interval for HDR (LDR) images where there is one."""
         values = np.asarray(scores, dtype=np.float64)
         low, high = self.interval(values)
         ldr = ~np.asarray(hdr, dtype=bool)
         if self.ldr_interval is not None:
             low[ldr], high[ldr] = (end[ldr] for end in self.ldr_interval(values))
-        if spread is not None and self.spread_interval is not None:
-            low[~ldr], high[~ldr] = (end[~ldr] for end in self.spread_interval(values, np.asarray(spread, np.float64)))
+        if spread is not None:
+            for iv, rows in ((self.spread_interval, ~ldr), (self.spread_ldr_interval, ldr)):
+                if iv is not None:
+                    low[rows], high[rows] = (end[rows] for end in iv(values, np.asarray(spread, np.float64)))
         return low, high
 
     def _extra_batch(
