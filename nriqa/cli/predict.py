@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--spread",
         action="store_true",
         help="also score the image's 8 flips and turns: the score's spread over them ('spread' in --json) widens "
-        "the interval where the network is unsure (the card's score_interval_spread, _ldr for LDR input; 9x the time)",
+        "the interval where the network is unsure (the card's score_interval_spread, _ldr for LDR input; 8x the time)",
     )
     ap.add_argument(
         "--threads",

@@ -310,7 +310,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-
     ap = build_parser()
     args = ap.parse_args(argv)
     try:

@@ -99,7 +99,7 @@ class Scorer:
             sure stops use their low end where one is given (card ``score_interval_loop_uniform`` /
             ``_adaptive``); other kinds keep the result's ``low``. Results of a call do not change.
         spread: also score the image's eight flips and turns and return the score's spread over them
-            (:mod:`nriqa.inference.spread`; nine passes of the network instead of one); single-image SSIM map
+            (:mod:`nriqa.inference.spread`; eight passes of the network instead of one); single-image SSIM map
             models only. The score stays the plain view's.
         spread_interval: with ``spread``, the interval for images taken as HDR whose offsets scale with the
             spread (card ``score_interval_spread``), which then replaces ``interval`` for them.
@@ -341,13 +341,12 @@ class Scorer:
         extra = self._extra_batch(twin, albedo, batch.shape)
         with torch.inference_mode():
             flags = self.detect_hdr(batch, hdr)
-            qmap = self._map(batch, flags, extra)
-            if self.exact_flat:
-                self._flat_to_one(qmap, batch, flags)
-            scores = qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
+            qmap = self._final_map(batch, flags, extra)
+            scores = _pool(qmap)
             spread = None
-            if self.spread:
-                spread = score_spread(view_scores(lambda views: self._pooled(views, flags * 4), batch)).to(out_device)
+            if self.spread:  # the other seven views, each image's flags with it (views come in blocks of B)
+                views = view_scores(lambda v: _pool(self._final_map(v, flags * (len(v) // b))), batch, scores)
+                spread = score_spread(views).to(out_device)
         qmap = qmap.to(out_device)
         scores = scores.to(out_device)
         if is_numpy:
@@ -369,12 +368,12 @@ class Scorer:
             return ScoreResult(qmap[0], float(scores[0]), self.quantity, flags[0], low, high, one)
         return ScoreResult(qmap, scores, self.quantity, flags, low, high, spread)
 
-    def _pooled(self, batch: Tensor, flags: list[bool]) -> Tensor:
-        """``(B,)`` pooled scores of a batch of single images (the views of :mod:`nriqa.inference.spread`)."""
-        qmap = self._map(batch, flags)
+    def _final_map(self, batch: Tensor, flags: list[bool], extra: Tensor | None = None) -> Tensor:
+        """The map of ``batch`` as returned: the network's, flat bright windows set to 1 (``exact_flat``)."""
+        qmap = self._map(batch, flags, extra)
         if self.exact_flat:
             self._flat_to_one(qmap, batch, flags)
-        return qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
+        return qmap
 
     def interval_ends(
         self, scores: np.ndarray, hdr: list[bool], spread: np.ndarray | None = None
@@ -554,6 +553,11 @@ class Scorer:
             diff.index_add_(1, xs_t + p, -scores)
             total[:, y0 : y0 + p, :] += diff[:, :w].cumsum(dim=1)[:, None, :]
         return (total / count).float()
+
+
+def _pool(qmap: Tensor) -> Tensor:
+    """``(B,)`` mean of each map of ``(B, H, W)``, summed in float64."""
+    return qmap.mean(dim=(-2, -1), dtype=torch.float64).float()
 
 
 def _halo_tiles(h: int, w: int, tile: int, halo: int):

@@ -12,7 +12,7 @@ renders with the widest spread err 8× more than the half with the narrowest.
 render the network reads the same every way from a zero-width interval), and the interval is
 ``score + q * (floor + spread)`` for the ``floor(a (n + 1))``-th and ``ceil((1 - a) (n + 1))``-th of the ``n``
 sorted normalised residuals, ``a = (1 - level) / 2``; both ends are clipped to [0, 1]. The score itself stays the
-plain view's. It costs eight more passes of the network, so a Scorer computes it only when asked
+plain view's. It costs seven more passes of the network, so a Scorer computes it only when asked
 (``Scorer(..., spread=True)``, ``nriqa-predict --spread``).
 """
 
@@ -39,15 +39,20 @@ def _views(batch: Tensor, turns: tuple[int, ...]) -> Tensor:
     return torch.cat([torch.rot90(x, k, (-2, -1)) for k in turns for x in (batch, batch.flip(-1))])
 
 
-def view_scores(score: Callable[[Tensor], Tensor], batch: Tensor) -> Tensor:
+def view_scores(score: Callable[[Tensor], Tensor], batch: Tensor, plain: Tensor | None = None) -> Tensor:
     """``(B, 8)`` pooled scores of every view of each image of ``batch`` ``(B, C, H, W)``.
 
     ``score`` maps a batch of views to their pooled scores ``(N,)``; it is called twice, once with the views of the
     image's own shape (turned 0 and 180 degrees) and once with the quarter-turned ones (``(W, H)``), so images
-    need not be square. Column 0 is the image itself.
+    need not be square. Column 0 is the image itself: ``plain``, its scores ``(B,)``, where the caller has them
+    already (the image is then not scored again).
     """
     b = batch.shape[0]
-    upright = score(_views(batch, (0, 2))).reshape(4, b)  # rows: plain, mirror, 180, mirror 180
+    upright = _views(batch, (0, 2))  # blocks: plain, mirror, 180, mirror 180
+    if plain is None:
+        upright = score(upright).reshape(4, b)
+    else:
+        upright = torch.cat([plain.reshape(1, b).to(upright.device), score(upright[b:]).reshape(3, b)])
     sideways = score(_views(batch, (1, 3))).reshape(4, b)
     return torch.cat([upright, sideways]).T
 
