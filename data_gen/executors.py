@@ -159,14 +159,24 @@ def _import_distributed():
     return distributed
 
 
+# Dask's statistical profiler samples each worker's threads every 10 ms, holding the GIL; once (stop 70, the
+# cluster test in CI) a worker's main thread sat in it at 100 % for ten minutes while the Mitsuba render on the
+# worker's task thread waited. Workers this package starts do not profile; a scheduler of your own can be started
+# with the same setting (DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False).
+NO_WORKER_PROFILE = {"distributed.worker.profile.enabled": False}
+
+
 def start_cluster(spec: Mapping):
     """Build the cluster ``spec`` names (``{"_target_": "distributed.LocalCluster", **kwargs}``)."""
     import hydra
 
     _import_distributed()
+    import dask
+
     os.environ.update(llvm_env())  # workers spawned on this machine inherit the LLVM path
     try:
-        return hydra.utils.instantiate(dict(spec), _convert_="all")
+        with dask.config.set(NO_WORKER_PROFILE):  # the nannies hand the workers this config
+            return hydra.utils.instantiate(dict(spec), _convert_="all")
     except Exception as exc:  # hydra wraps ImportError / TypeError / OSError in InstantiationException
         cause = exc.__cause__ or exc
         raise ExecutorError(

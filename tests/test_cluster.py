@@ -19,6 +19,7 @@ import pytest
 
 pytest.importorskip("mitsuba")
 distributed = pytest.importorskip("distributed", reason="executor=dask needs the extra: pip install 'nriqa[cluster]'")
+import dask  # noqa: E402
 import psutil  # noqa: E402 (a dependency of distributed)
 from conftest import REPO, run_data_gen  # noqa: E402
 
@@ -67,7 +68,10 @@ def dask_workers(proc: subprocess.Popen) -> list[psutil.Process]:
 def test_local_cluster_renders_the_same_dataset_as_the_local_pool(tiny, tmp_path):
     """Through a running scheduler (executor.address): its two workers probe LLVM and set up Mitsuba."""
     scenes = ["cornell", "glossy"]
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster:
+    with (
+        dask.config.set(executors.NO_WORKER_PROFILE),  # as data_gen starts its own workers (executors.py)
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster,
+    ):
         address = cluster.scheduler_address
         proc = run_data_gen(
             "preset=tiny",
