@@ -99,7 +99,7 @@ def test_fit_refuses_mismatched_or_too_few_images():
 
 @pytest.mark.parametrize("name, images", [("unet_fast", 2670), ("dual_fast", 1592), ("fcnn_fast", 1592)])
 def test_shipped_cards_carry_a_90_percent_interval_fitted_on_unlearnt_images(name, images):
-    # rule X (stop 42) for each file then shipped; unet_fast refitted for its file by rule R71 (stop 69), again at stop 71
+    # rule X (stop 42) for each file then shipped; unet_fast refitted for its file (rule R71, stop 69; stop 71)
     entry = load_card(name)[0]["score_interval"]
     iv = ScoreInterval.from_dict(entry)
     assert iv.level == 0.9 and sum(iv.counts) == images and min(iv.counts) >= 30
