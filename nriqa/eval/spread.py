@@ -90,12 +90,16 @@ def scored(
     return {k: v[keep] for k, v in out.items()}
 
 
+def _groups(family: np.ndarray, pooled: str) -> list[tuple[str, np.ndarray]]:
+    """The rows' groups for a coverage table: all of them (named ``pooled``), then each family's."""
+    return [(pooled, np.ones(family.size, bool))] + [(f"family {f}", family == f) for f in sorted(set(family))]
+
+
 def check(rows: dict[str, np.ndarray], spread_iv: SpreadInterval, card_iv_name: str = "score_interval") -> list[dict]:
     """Coverage of the spread interval and of the card's tone-map interval, pooled and per family."""
     table = []
-    fam = rows["family"]
     lo, hi = spread_iv(rows["score"], rows["spread"])
-    for group, m in [("all", np.ones(fam.size, bool))] + [(f"family {f}", fam == f) for f in sorted(set(fam))]:
+    for group, m in _groups(rows["family"], "all"):
         for name, a, b in (("spread", lo, hi), (card_iv_name, rows["low"], rows["high"])):
             table.append(_row(f"{group}: {name}", rows["score"][m], rows["true"][m], a[m], b[m]))
     return table
@@ -110,9 +114,7 @@ def leave_one_out(rows: dict[str, np.ndarray], level: float, min_count: int = 30
         lo[m], hi[m] = SpreadInterval.fit(p[~m], t[~m], s[~m], level=level)(p[m], s[m])
         blo[m], bhi[m] = ScoreInterval.fit(p[~m], t[~m], level=level, min_count=min_count)(p[m])
     table = []
-    for group, m in [("all (each family held out)", np.ones(fam.size, bool))] + [
-        (f"family {f}", fam == f) for f in sorted(set(fam))
-    ]:
+    for group, m in _groups(fam, "all (each family held out)"):
         table.append(_row(f"{group}: spread", p[m], t[m], lo[m], hi[m]))
         table.append(_row(f"{group}: banded", p[m], t[m], blo[m], bhi[m]))
     return table

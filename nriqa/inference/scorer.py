@@ -275,17 +275,16 @@ class Scorer:
         net = net_from_card(card, pt)
         if "interval" not in kwargs:
             try:
-                for key, arg in (("score_interval", "interval"), ("score_interval_ldr", "ldr_interval")):
-                    entry = card.get(key)
-                    kwargs.setdefault(arg, ScoreInterval.from_dict(entry) if entry is not None else None)
-                loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
-                kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
-                for key, arg in (
-                    ("score_interval_spread", "spread_interval"),
-                    ("score_interval_spread_ldr", "spread_ldr_interval"),
+                for key, arg, kind in (
+                    ("score_interval", "interval", ScoreInterval),
+                    ("score_interval_ldr", "ldr_interval", ScoreInterval),
+                    ("score_interval_spread", "spread_interval", SpreadInterval),
+                    ("score_interval_spread_ldr", "spread_ldr_interval", SpreadInterval),
                 ):
                     entry = card.get(key)
-                    kwargs.setdefault(arg, SpreadInterval.from_dict(entry) if entry is not None else None)
+                    kwargs.setdefault(arg, kind.from_dict(entry) if entry is not None else None)
+                loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
+                kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
             except ValueError as exc:
                 raise PretrainedError(
                     f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
