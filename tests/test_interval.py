@@ -181,7 +181,11 @@ def test_a_scorer_without_a_calibration_gives_no_ends():
 def test_a_malformed_card_entry_is_one_line_at_load(tmp_path):
     save_pretrained(create_model("fcnn_fast"), "w", {"note": "test"}, dir=tmp_path, spec={"name": "fcnn_fast"})
     update_card("w", {"score_interval": {"level": 0.9}}, dir=tmp_path)
-    with pytest.raises(PretrainedError, match="malformed score_interval"):
+    with pytest.raises(PretrainedError, match=r"the card's score_interval: malformed .*nriqa\.eval\.coverage fit"):
+        Scorer.from_pretrained("w", dir=tmp_path)
+    # a spread entry names its own key and the tool that fits it
+    update_card("w", {"score_interval": None, "score_interval_spread": {"level": 0.9}}, dir=tmp_path)
+    with pytest.raises(PretrainedError, match=r"the card's score_interval_spread: .*nriqa\.eval\.spread fit"):
         Scorer.from_pretrained("w", dir=tmp_path)
 
 

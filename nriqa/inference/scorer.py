@@ -274,21 +274,25 @@ class Scorer:
         card, pt = load_card(name, dir)
         net = net_from_card(card, pt)
         if "interval" not in kwargs:
-            try:
-                for key, arg, kind in (
-                    ("score_interval", "interval", ScoreInterval),
-                    ("score_interval_ldr", "ldr_interval", ScoreInterval),
-                    ("score_interval_spread", "spread_interval", SpreadInterval),
-                    ("score_interval_spread_ldr", "spread_ldr_interval", SpreadInterval),
-                ):
-                    entry = card.get(key)
-                    kwargs.setdefault(arg, kind.from_dict(entry) if entry is not None else None)
-                loops = {k: card[loop_card_key(k)] for k in LOOP_KINDS if loop_card_key(k) in card}
-                kwargs.setdefault("loop_intervals", {k: ScoreInterval.from_dict(e) for k, e in loops.items()})
-            except ValueError as exc:
-                raise PretrainedError(
-                    f"weights {name!r}: {exc}; re-fit it (python -m nriqa.eval.coverage fit)"
-                ) from None
+
+            def card_interval(key, kind):
+                try:
+                    return kind.from_dict(card[key]) if card.get(key) is not None else None
+                except ValueError as exc:
+                    tool = "nriqa.eval.spread" if kind is SpreadInterval else "nriqa.eval.coverage"
+                    raise PretrainedError(
+                        f"weights {name!r}: the card's {key}: {exc}; re-fit it (python -m {tool} fit)"
+                    ) from None
+
+            for key, arg, kind in (
+                ("score_interval", "interval", ScoreInterval),
+                ("score_interval_ldr", "ldr_interval", ScoreInterval),
+                ("score_interval_spread", "spread_interval", SpreadInterval),
+                ("score_interval_spread_ldr", "spread_ldr_interval", SpreadInterval),
+            ):
+                kwargs.setdefault(arg, card_interval(key, kind))
+            loops = {k: card_interval(loop_card_key(k), ScoreInterval) for k in LOOP_KINDS}
+            kwargs.setdefault("loop_intervals", {k: v for k, v in loops.items() if v is not None})
         learnt = card.get("pixel_filter", "box")
         if learnt not in PIXEL_FILTERS:
             raise PretrainedError(
