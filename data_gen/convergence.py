@@ -226,6 +226,33 @@ def drop_rungs(records: list[Record], rungs: list[dict]) -> list[Record]:
     return [r for r in records if r.role == "reference" or (r.scene, r.variant, r.algorithm, r.spp) not in gone]
 
 
+def suspect_references(records: list[Record], verdicts: list[dict]) -> list[tuple[str, int]]:
+    """The (scene, variant) pairs whose reference fails against its own algorithm's top rung.
+
+    The reference and that rung come from one integrator and sampler, so they share their expected
+    image: a failed verdict there says the reference itself is off (a heavy-tailed light path it
+    has not averaged yet), and every target of the variant is measured against it. A failure of
+    another algorithm may be that algorithm's own bias, a real property of its images.
+    """
+    refs = {r.path: r for r in records if r.role == "reference"}
+    own = {(r.scene, r.variant): refs[r.reference].algorithm for r in records if r.role == "test"}
+    bad = {
+        (v["scene"], v["variant"])
+        for v in verdicts
+        if not v["converged"] and own.get((v["scene"], v["variant"])) == v["algorithm"]
+    }
+    return sorted(bad)
+
+
+def drop_variants(records: list[Record], variants: list[tuple[str, int]]) -> list[Record]:
+    """``records`` without the test images and twins of ``variants`` ((scene, variant) pairs).
+
+    References stay, and so do the files on disk.
+    """
+    gone = set(variants)
+    return [r for r in records if r.role == "reference" or (r.scene, r.variant) not in gone]
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m data_gen.convergence DATA [--out DIR] [--every-rung] [--drop-noisy]``: both checks over a dataset.
 
@@ -233,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     (default ``DATA/checks``), prints each failure, and exits 1 if anything failed, 2 on bad input.
     ``--drop-noisy`` rewrites the manifest without the rungs whose reference is too noisy (listed in
     its ``meta``, files kept), so that nothing trains on their targets; those rungs then count as handled.
+    ``--drop-suspect`` likewise drops every test image of a variant whose reference fails against its
+    own algorithm's top rung (:func:`suspect_references`); that variant's failed verdicts count as handled.
     Rerendering into DATA writes the full manifest again: run the check with ``--drop-noisy`` after it.
     """
     import argparse
@@ -247,6 +276,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every-rung", action="store_true", help="convergence of every rung, not only each top rung")
     parser.add_argument(
         "--drop-noisy", action="store_true", help="rewrite the manifest without the rungs whose reference is too noisy"
+    )
+    parser.add_argument(
+        "--drop-suspect",
+        action="store_true",
+        help="rewrite the manifest without the variants whose reference fails against its own algorithm",
     )
     args = parser.parse_args(argv)
     try:
@@ -275,13 +309,25 @@ def main(argv: list[str] | None = None) -> int:
         f"wrote {out}: {len(verdicts)} verdicts ({len(failed)} not converged), "
         f"{len(noise)} rungs ({len(noisy)} with a reference too noisy, ratio > {MAX_REFERENCE_NOISE})"
     )
+    kept = records
     if args.drop_noisy and noisy:
-        kept = drop_rungs(records, noisy)
+        kept = drop_rungs(kept, noisy)
         dropped = [f"{n['scene']}/v{n['variant']:03d}/{n['algorithm']}/{n['spp']}" for n in noisy]
         meta = {**meta, "dropped_noisy_reference": sorted({*meta.get("dropped_noisy_reference", []), *dropped})}
-        write_manifest(args.data, kept, meta)
-        print(f"rewrote {args.data / 'manifest.json'}: {len(records) - len(kept)} images of {len(noisy)} rungs dropped")
+        print(f"dropping {len(noisy)} rungs whose reference is too noisy")
         noisy = []
+    suspect = suspect_references(records, verdicts)
+    for scene, variant in suspect:
+        print(f"reference suspect: {scene} v{variant:03d} (its own algorithm's top rung does not converge to it)")
+    if args.drop_suspect and suspect:
+        kept = drop_variants(kept, suspect)
+        dropped = [f"{scene}/v{variant:03d}" for scene, variant in suspect]
+        meta = {**meta, "dropped_suspect_reference": sorted({*meta.get("dropped_suspect_reference", []), *dropped})}
+        print(f"dropping the test images of {len(suspect)} variants whose reference is suspect")
+        failed = [v for v in failed if (v["scene"], v["variant"]) not in set(suspect)]
+    if len(kept) != len(records):
+        write_manifest(args.data, kept, meta)
+        print(f"rewrote {args.data / 'manifest.json'}: {len(records) - len(kept)} images dropped")
     return 1 if failed or noisy else 0
 
 

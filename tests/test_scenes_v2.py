@@ -534,7 +534,7 @@ def test_checks_command_passes_on_the_new_families_and_fails_on_a_reference_too_
     before, _ = read_manifest(tmp_path / "cornell")
     capsys.readouterr()
     assert main([str(tmp_path / "cornell"), "--drop-noisy"]) == 0
-    assert "images of" in capsys.readouterr().out
+    assert "images dropped" in capsys.readouterr().out
     after, meta = read_manifest(tmp_path / "cornell")
     assert "cornell/v000/path_independent/16" in meta["dropped_noisy_reference"]
     assert not [r for r in after if r.role != "reference" and r.algorithm == "path_independent" and r.spp == 16]
@@ -545,6 +545,33 @@ def test_checks_command_passes_on_the_new_families_and_fails_on_a_reference_too_
     assert not [row for row in rows if row.startswith("cornell,0,path_independent,16,")], (
         "a dropped rung is not checked"
     )
+
+
+def test_a_reference_its_own_algorithm_disagrees_with_is_suspect_and_its_variant_can_be_dropped(tiny, tmp_path, capsys):
+    """cornell's reference made 30 % brighter: its own algorithm's top rung no longer converges to it,
+    so every target of the variant is wrong; --drop-suspect takes the variant's test images out."""
+    import shutil
+
+    from data_gen.convergence import main
+    from nriqa.io.exr import write_exr
+    from nriqa.io.manifest import write_manifest
+
+    records, _ = read_manifest(tiny)
+    root = tmp_path / "cornell"
+    shutil.copytree(tiny / "cornell", root / "cornell")
+    chosen = [r for r in records if r.scene == "cornell" and (r.scene, r.algorithm) not in TINY_REFERENCE_TOO_NOISY]
+    write_manifest(root, chosen, {})
+    assert main([str(root)]) == 0, "as rendered, nothing is suspect"
+    assert "suspect" not in capsys.readouterr().out
+    ref = next(r for r in chosen if r.role == "reference")
+    write_exr(root / ref.path, read_exr(tiny / ref.path) * 1.3)
+    assert main([str(root)]) == 1
+    assert "reference suspect: cornell v000" in capsys.readouterr().out
+    assert len(read_manifest(root)[0]) == len(chosen), "reported, nothing dropped without the flag"
+    assert main([str(root), "--drop-suspect"]) == 0, "the variant's failures are handled by dropping it"
+    after, meta = read_manifest(root)
+    assert meta["dropped_suspect_reference"] == ["cornell/v000"]
+    assert [r.role for r in after] == ["reference"] and all((root / r.path).is_file() for r in chosen)
 
 
 def test_random_materials_and_standing_shapes_load_in_mitsuba():
