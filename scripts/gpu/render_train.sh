@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One short lease of a GPU machine (a bare one: Python 3.12 with PyTorch and Lightning, nothing fetched):
 # render a v2-preset training set with Mitsuba's cuda_ad_rgb variant in stages (each stage a complete,
-# resumable dataset), gate it (data_gen.convergence --drop-noisy), then train the runs named on the command
+# resumable dataset), gate it (data_gen.convergence --drop-noisy --drop-suspect), then train the runs named on the command
 # line side by side on the one GPU until the time is up. Run from the repository root there, with the
 # tarball of scripts/gpu/pack_site.sh beside it (SITE):
 #
@@ -92,7 +92,7 @@ for V in ${STAGES:-3 8 16 28 40}; do
 done
 [ -n "$GOOD" ] || { echo "no stage finished"; exit 3; }
 cp /tmp/manifest_complete.json "$D/manifest.json" # the stage cut short wrote no manifest; its files stay unused
-timeout "${GATE_SECONDS:-45}" "$PY" -m data_gen.convergence "$D" --drop-noisy >"$OUT/gate.log" 2>&1
+timeout "${GATE_SECONDS:-45}" "$PY" -m data_gen.convergence "$D" --drop-noisy --drop-suspect >"$OUT/gate.log" 2>&1
 echo "[$(el)] gate rc=$? (1: some rung not converged; 124: cut short, manifest unchanged): $(tail -n 1 "$OUT/gate.log")"
 cp "$D/manifest.json" "$OUT/manifest.json"
 echo "[$(el)] dataset: $GOOD variants, $(du -sh "$D" | cut -f1)"
