@@ -253,6 +253,11 @@ def drop_variants(records: list[Record], variants: list[tuple[str, int]]) -> lis
     return [r for r in records if r.role == "reference" or (r.scene, r.variant) not in gone]
 
 
+def _listed(meta: dict, key: str, dropped: list[str]) -> dict:
+    """``meta`` with ``dropped`` added to its sorted list ``key`` (what earlier runs dropped stays listed)."""
+    return {**meta, key: sorted({*meta.get(key, []), *dropped})}
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m data_gen.convergence DATA [--out DIR] [--every-rung] [--drop-noisy]``: both checks over a dataset.
 
@@ -313,18 +318,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.drop_noisy and noisy:
         kept = drop_rungs(kept, noisy)
         dropped = [f"{n['scene']}/v{n['variant']:03d}/{n['algorithm']}/{n['spp']}" for n in noisy]
-        meta = {**meta, "dropped_noisy_reference": sorted({*meta.get("dropped_noisy_reference", []), *dropped})}
+        meta = _listed(meta, "dropped_noisy_reference", dropped)
         print(f"dropping {len(noisy)} rungs whose reference is too noisy")
         noisy = []
     suspect = suspect_references(records, verdicts)
     for scene, variant in suspect:
         print(f"reference suspect: {scene} v{variant:03d} (its own algorithm's top rung does not converge to it)")
     if args.drop_suspect and suspect:
+        gone = set(suspect)
         kept = drop_variants(kept, suspect)
         dropped = [f"{scene}/v{variant:03d}" for scene, variant in suspect]
-        meta = {**meta, "dropped_suspect_reference": sorted({*meta.get("dropped_suspect_reference", []), *dropped})}
+        meta = _listed(meta, "dropped_suspect_reference", dropped)
         print(f"dropping the test images of {len(suspect)} variants whose reference is suspect")
-        failed = [v for v in failed if (v["scene"], v["variant"]) not in set(suspect)]
+        failed = [v for v in failed if (v["scene"], v["variant"]) not in gone]
     if len(kept) != len(records):
         write_manifest(args.data, kept, meta)
         print(f"rewrote {args.data / 'manifest.json'}: {len(records) - len(kept)} images dropped")
