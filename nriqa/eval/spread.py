@@ -22,6 +22,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -30,6 +31,9 @@ from nriqa.errors import NriqaError
 from nriqa.eval.coverage import COLUMNS, _row, _write, save_interval
 from nriqa.inference.interval import ScoreInterval
 from nriqa.inference.spread import SpreadInterval
+
+if TYPE_CHECKING:
+    from nriqa.inference.scorer import Scorer
 
 BATCH = 64  # images of one size scored together
 
@@ -40,8 +44,7 @@ class SpreadError(NriqaError):
 
 def scored(
     roots: list[str],
-    weights: str,
-    dir: str | None = None,
+    scorer: Scorer,
     pattern: str | None = None,
     reference: str | None = None,
     displays: list[str] = (),
@@ -51,16 +54,15 @@ def scored(
     A root without ``manifest.json`` is read as an external folder of renders by ``pattern`` and ``reference``
     (:mod:`nriqa.io.external`), as ``nriqa-evaluate`` reads one. With ``displays`` (``nriqa-evaluate --display``
     specs) every image is shown through each of them, image and reference alike, and scored as LDR input; the card
-    interval compared is then ``score_interval_ldr``."""
+    interval compared is then ``score_interval_ldr``. ``scorer``: built with ``spread=True`` and its card's
+    intervals (``Scorer.from_pretrained``)."""
     from nriqa.core.display import Display
     from nriqa.eval.dataset import load_dataset, records_of
-    from nriqa.inference.scorer import Scorer
     from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE
 
-    scorer = Scorer.from_pretrained(weights, dir=dir, spread=True)
     card_interval = scorer.ldr_interval if displays else scorer.interval
     if card_interval is None:
-        raise SpreadError(f"weights {weights!r} carry no {'score_interval_ldr' if displays else 'score_interval'}")
+        raise SpreadError(f"the weights carry no {'score_interval_ldr' if displays else 'score_interval'}")
     try:
         shows = [Display.parse(d) for d in displays] or [None]
     except ValueError as exc:
@@ -154,14 +156,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from nriqa.inference.pretrained import load_card
+    from nriqa.inference.scorer import Scorer
 
     ap = build_parser()
     args = ap.parse_args(argv)
     try:
         if args.cmd == "fit" and not (args.out or args.write):
             raise SpreadError("say where the interval goes: --out FILE.json or --write (the card)")
-        rows = scored(args.data, args.weights, args.dir, args.pattern, args.reference, args.display)
+        scorer = Scorer.from_pretrained(args.weights, dir=args.dir, spread=True)
+        rows = scored(args.data, scorer, args.pattern, args.reference, args.display)
         key = "score_interval_spread_ldr" if args.display else "score_interval_spread"
         if args.cmd == "fit":
             iv = SpreadInterval.fit(rows["score"], rows["true"], rows["spread"], level=args.level, source=args.source)
@@ -169,13 +172,14 @@ def main(argv: list[str] | None = None) -> int:
         elif args.cmd == "check":
             if args.interval:
                 entry = json.loads(Path(args.interval).read_text())
+                spread_iv = SpreadInterval.from_dict(entry)
             else:
-                entry = load_card(args.weights, args.dir)[0].get(key)
-                if entry is None:
+                spread_iv = scorer.spread_ldr_interval if args.display else scorer.spread_interval
+                if spread_iv is None:
                     raise SpreadError(f"weights {args.weights!r} carry no {key}; give --interval")
             card_key = "score_interval_ldr" if args.display else "score_interval"
             title = f"Coverage of {args.weights}'s spread interval beside its {card_key}"
-            _write(args.out, title, check(rows, SpreadInterval.from_dict(entry), card_key), COLUMNS, "spread")
+            _write(args.out, title, check(rows, spread_iv, card_key), COLUMNS, "spread")
         else:
             title = f"Coverage of {args.weights}'s spread interval, each family held out"
             _write(args.out, title, leave_one_out(rows, args.level, args.min_count), COLUMNS, "spread")
