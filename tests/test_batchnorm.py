@@ -79,3 +79,15 @@ def test_fine_tune_estimates_statistics_first(tmp_path, synthetic_dataset):
     assert all(int(m.num_batches_tracked) == 4 for m in batchnorms(net))  # estimated, then never updated
     shipped = load_pretrained("fcnn_fast").state_dict()
     assert not torch.equal(shipped["net.2.running_mean"], net.state_dict()["net.2.running_mean"])
+
+
+def test_refresh_after_training_rewrites_last_checkpoint(tmp_path, synthetic_dataset):
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "bn_refresh=3")
+    _, objects = train(cfg)
+    assert objects["model"].hparams["bn_refresh"] == 3
+    net = objects["model"].net
+    assert all(int(m.num_batches_tracked) == 3 for m in batchnorms(net))  # averaged over 3, not the training steps
+    last = torch.load(tmp_path / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
+    saved = {k: v for k, v in last["state_dict"].items() if "running_mean" in k}
+    assert saved and all(torch.equal(v, net.state_dict()[k[len("net.") :]]) for k, v in saved.items())
+    assert last["hyper_parameters"]["bn_refresh"] == 3

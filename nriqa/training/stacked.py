@@ -9,7 +9,7 @@ serves every fold, each on its own batch. The folds' losses are summed, which gi
 exactly its own gradient, and Adam's update is per element, so each fold follows the path it would alone
 (tested against the per-fold training of ``nriqa-crossval``: the same patches, initial weights and updates).
 
-What it does not do, and refuses with one line: hard-example sampling, ``bn_estimate``, ``freeze_bn``,
+What it does not do, and refuses with one line: hard-example sampling, ``bn_estimate``, ``bn_refresh``, ``freeze_bn``,
 ``data.anchor_scenes`` or ``data.anchor_data``, several devices, gradient clipping or accumulation, another
 precision, a scheduler that watches a metric.
 It validates nothing while training (the fold tables use each fold's end of training, ``last.ckpt``, the
@@ -179,6 +179,8 @@ def check_supported(cfg: DictConfig) -> None:
         why.append("ladder_weight")
     if cfg.get("bn_estimate"):
         why.append("bn_estimate")
+    if cfg.get("bn_refresh"):
+        why.append("bn_refresh")
     if cfg.get("freeze_bn"):
         why.append("freeze_bn")
     if (cfg.get("data") or {}).get("anchor_scenes"):
