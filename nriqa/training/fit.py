@@ -15,7 +15,6 @@ import hydra
 import lightning as L
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from nriqa.io.atomic import PARTIAL_MARK
 from nriqa.losses.ladder import check_ladder_weight
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.hard_sampling import check_mix, check_power, draw_weights
@@ -83,16 +82,14 @@ def _fit_without_val(cfg: DictConfig) -> None:
             cfg.optimized_metric = "train/loss"
 
 
-def _refresh_batchnorm(trainer: L.Trainer, model: NRIQAModule, datamodule, n: int, last: Path | str) -> None:
+def _refresh_batchnorm(trainer: L.Trainer, model: NRIQAModule, datamodule, n: int) -> None:
     # bn_refresh: the running statistics of the trained weights averaged over n training batches, then
-    # last.ckpt written again (atomically) so nriqa-evaluate --crossval and the Scorer read them
+    # last.ckpt written again so nriqa-evaluate --crossval and the Scorer read them
     used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), n)
     model.hparams.update({"bn_refresh": used})
-    if last:
-        tmp = Path(last).with_name(f".last_refresh{PARTIAL_MARK}.ckpt")
-        trainer.save_checkpoint(tmp, weights_only=False)
-        if trainer.is_global_zero:
-            os.replace(tmp, last)
+    for cb in trainer.callbacks:
+        if isinstance(cb, LastCheckpoint):
+            cb.write(trainer)
 
 
 def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
@@ -151,9 +148,9 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
 
     metrics = {k: float(v) for k, v in trainer.callback_metrics.items()}
     ckpt_cb = trainer.checkpoint_callback
-    last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
     if cfg.get("bn_refresh"):
-        _refresh_batchnorm(trainer, model, datamodule, int(cfg.bn_refresh), last)
+        _refresh_batchnorm(trainer, model, datamodule, int(cfg.bn_refresh))
+    last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
     best = (ckpt_cb.best_model_path if ckpt_cb is not None else "") or str(last)
     objects = {
         "cfg": cfg,

@@ -42,6 +42,10 @@ class LastCheckpoint(L.Callback):
     def on_train_epoch_end(self, trainer: L.Trainer, pl_module: L.LightningModule) -> None:
         if trainer.sanity_checking:
             return
+        self.write(trainer)
+
+    def write(self, trainer: L.Trainer) -> None:
+        """Write the trainer's state to ``last.ckpt`` now, atomically (also after training: ``bn_refresh``)."""
         # one name for every rank (save_checkpoint is collective); the partial mark lets a resume sweep it
         tmp = self.dirpath / f".last{PARTIAL_MARK}.ckpt"
         trainer.save_checkpoint(tmp, weights_only=False)  # whole (a resume needs the optimiser); said, not logged
