@@ -122,7 +122,7 @@ def test_the_command_fits_checks_and_holds_out_families(synthetic_dataset, tmp_p
     text = capsys.readouterr().out
     assert "| all: spread | 24 |" in text and "| all: score_interval_ldr | 24 |" in text
     assert spread_cli.main(["check", data, "--display", "srgb", "--weights", "fcnn_fast"]) == 2
-    assert "no score_interval_ldr" in capsys.readouterr().err
+    assert "weights 'fcnn_fast' carry no score_interval_ldr" in capsys.readouterr().err  # names them
     assert spread_cli.main(["check", data, "--display", "sepia"]) == 2
     assert "--display" in capsys.readouterr().err
     for argv, message in (

@@ -48,6 +48,7 @@ def scored(
     pattern: str | None = None,
     reference: str | None = None,
     displays: list[str] = (),
+    name: str = "the weights",
 ) -> dict[str, np.ndarray]:
     """``family``, ``true``, ``score``, ``spread`` (and the card interval's ``low``, ``high``) of every test image.
 
@@ -55,14 +56,15 @@ def scored(
     (:mod:`nriqa.io.external`), as ``nriqa-evaluate`` reads one. With ``displays`` (``nriqa-evaluate --display``
     specs) every image is shown through each of them, image and reference alike, and scored as LDR input; the card
     interval compared is then ``score_interval_ldr``. ``scorer``: built with ``spread=True`` and its card's
-    intervals (``Scorer.from_pretrained``)."""
+    intervals (``Scorer.from_pretrained``); ``name``: the weights' name, for the error line."""
     from nriqa.core.display import Display
     from nriqa.eval.dataset import load_dataset, records_of
     from nriqa.io.external import DEFAULT_PATTERN, DEFAULT_REFERENCE
 
     card_interval = scorer.ldr_interval if displays else scorer.interval
     if card_interval is None:
-        raise SpreadError(f"the weights carry no {'score_interval_ldr' if displays else 'score_interval'}")
+        key = "score_interval_ldr" if displays else "score_interval"
+        raise SpreadError(f"{name} carry no {key} to compare with; fit one first (python -m nriqa.eval.coverage fit)")
     try:
         shows = [Display.parse(d) for d in displays] or [None]
     except ValueError as exc:
@@ -164,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.cmd == "fit" and not (args.out or args.write):
             raise SpreadError("say where the interval goes: --out FILE.json or --write (the card)")
         scorer = Scorer.from_pretrained(args.weights, dir=args.dir, spread=True)
-        rows = scored(args.data, scorer, args.pattern, args.reference, args.display)
+        rows = scored(args.data, scorer, args.pattern, args.reference, args.display, f"weights {args.weights!r}")
         key = "score_interval_spread_ldr" if args.display else "score_interval_spread"
         if args.cmd == "fit":
             iv = SpreadInterval.fit(rows["score"], rows["true"], rows["spread"], level=args.level, source=args.source)
