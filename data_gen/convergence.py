@@ -223,7 +223,12 @@ def drop_rungs(records: list[Record], rungs: list[dict]) -> list[Record]:
     trained on (thesis ch. 4). References and the other rungs stay; the files stay on disk.
     """
     gone = {(r["scene"], r["variant"], r["algorithm"], r["spp"]) for r in rungs}
-    return [r for r in records if r.role == "reference" or (r.scene, r.variant, r.algorithm, r.spp) not in gone]
+    return _without(records, gone, lambda r: (r.scene, r.variant, r.algorithm, r.spp))
+
+
+def _without(records: list[Record], gone: set, key) -> list[Record]:
+    """``records`` without the test images and twins whose ``key(record)`` is in ``gone``; references all stay."""
+    return [r for r in records if r.role == "reference" or key(r) not in gone]
 
 
 def suspect_references(records: list[Record], verdicts: list[dict]) -> list[tuple[str, int]]:
@@ -249,8 +254,7 @@ def drop_variants(records: list[Record], variants: list[tuple[str, int]]) -> lis
 
     References stay, and so do the files on disk.
     """
-    gone = set(variants)
-    return [r for r in records if r.role == "reference" or (r.scene, r.variant) not in gone]
+    return _without(records, set(variants), lambda r: (r.scene, r.variant))
 
 
 def _listed(meta: dict, key: str, dropped: list[str]) -> dict:
