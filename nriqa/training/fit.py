@@ -82,11 +82,17 @@ def _fit_without_val(cfg: DictConfig) -> None:
             cfg.optimized_metric = "train/loss"
 
 
-def _refresh_batchnorm(trainer: L.Trainer, model: NRIQAModule, datamodule, n: int) -> None:
-    # bn_refresh: the running statistics of the trained weights averaged over n training batches, then
-    # last.ckpt written again so nriqa-evaluate --crossval and the Scorer read them
+def _estimate_batchnorm(model: NRIQAModule, datamodule, n: int, key: str) -> None:
+    # the running statistics averaged over n training batches, the count recorded under key
+    # (bn_estimate before training, bn_refresh after it)
     used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), n)
-    model.hparams.update({"bn_refresh": used})
+    model.hparams.update({key: used})
+
+
+def _refresh_batchnorm(trainer: L.Trainer, model: NRIQAModule, datamodule, n: int) -> None:
+    # bn_refresh: the trained weights' statistics estimated, then last.ckpt written again so
+    # nriqa-evaluate --crossval and the Scorer read them
+    _estimate_batchnorm(model, datamodule, n, "bn_refresh")
     for cb in trainer.callbacks:
         if isinstance(cb, LastCheckpoint):
             cb.write(trainer)
@@ -119,8 +125,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"))
         model.hparams.update({"init_from": str(cfg.init_from), "init_member": cfg.get("init_member")})
     if cfg.get("bn_estimate"):
-        used = estimate_batchnorm(model.net, repeated(datamodule.train_dataloader()), int(cfg.bn_estimate))
-        model.hparams.update({"bn_estimate": used})
+        _estimate_batchnorm(model, datamodule, int(cfg.bn_estimate), "bn_estimate")
     if datamodule.anchors:
         if not cfg.get("init_from"):
             raise ValueError(
