@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from nriqa.eval.scorecard import ScorecardError, main, read_rows, scorecard
+from nriqa.eval.scorecard import ScorecardError, by_group, main, read_rows, scorecard
 from nriqa.io.tables import write_csv
 
 COLUMNS = ["predictor", "id", "scene", "variant", "algorithm", "spp", "true", "predicted", "mapped"]
@@ -114,3 +114,34 @@ def test_a_family_can_be_left_out(tmp_path, capsys):
     main([str(path), "--without", "dark"])
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("| high |"))
     assert "| 12 |" in line and "dark" not in line
+
+
+def test_rows_by_algorithm_and_by_family_show_where_the_error_lives(tmp_path, capsys):
+    rows = _rows({"exact": {}, "high": {"dark": 0.06}})
+    for r in rows:
+        r["algorithm"] = "ptracer" if r["scene"] == "dark" else "path"
+    path = _write(tmp_path, "images.csv", rows)
+    pooled = scorecard(read_rows([path]))
+    grouped = by_group(read_rows([path]), pooled, "algorithm")
+    assert [(c["predictor"], c["group"]) for c in grouped] == [
+        ("exact", "all"),
+        ("high", "all"),
+        ("exact", "path"),
+        ("exact", "ptracer"),
+        ("high", "path"),
+        ("high", "ptracer"),
+    ]
+    high = {c["group"]: c for c in grouped if c["predictor"] == "high"}
+    # the pooled row is the ungrouped card; the 0.06 lives in the dark renders' algorithm only
+    assert high["all"]["mae"] == pytest.approx(pooled[1]["mae"]) and high["all"]["n"] == 24
+    assert high["path"]["n"] == 12 and high["path"]["mae"] == 0.0
+    assert high["ptracer"]["n"] == 12 and high["ptracer"]["bias"] == pytest.approx(6 * 0.06 / 12)
+    assert high["ptracer"]["low_bias"] == pytest.approx(0.06)
+    by_scene = by_group(read_rows([path]), pooled, "scene")
+    assert [c["group"] for c in by_scene] == ["all", "all", "bright", "dark", "bright", "dark"]
+    with pytest.raises(ScorecardError, match="cannot group by 'spp'; choose one of: scene, algorithm"):
+        by_group(read_rows([path]), pooled, "spp")
+    main([str(path), "--by", "algorithm", "--out", str(tmp_path / "card")])
+    out = capsys.readouterr().out
+    assert "| predictor | group | n |" in out and "| high | ptracer | 12 |" in out
+    assert (tmp_path / "card" / "scorecard.csv").read_text().startswith("predictor,group,n,srocc")

@@ -18,7 +18,9 @@ set or several pooled, all on the SSIM scale (the ``mapped`` column) against the
 Pooled sets keep their (scene, variant) groups apart: the same variant number in two sets is two
 groups. ``python -m nriqa.eval.scorecard A/images.csv B/images.csv --base unet_fast --out DIR``
 writes ``scorecard.{csv,md}`` to ``DIR`` and prints the table; ``--without FAMILY`` leaves a family out
-(a rule that asks the other families to hold while one is learnt).
+(a rule that asks the other families to hold while one is learnt); ``--by scene`` or ``--by algorithm``
+adds a row per scorer and scene family or sampling algorithm after the pooled ones, with the group in a
+``group`` column (the pooled rows read ``all``): where a scorer's error lives.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ COLUMNS = [
     "families_off",
     "newly_off",
 ]
+BY = ("scene", "algorithm")
 NEED = {"predictor", "id", "scene", "variant", "algorithm", "spp", "true", "mapped"}
 
 
@@ -180,9 +183,27 @@ def scorecard(rows: list[dict], predictors: list[str] | None = None, base: str |
     return cards
 
 
+def by_group(rows: list[dict], cards: list[dict], by: str) -> list[dict]:
+    """``cards`` (the pooled ones, :func:`scorecard`) with ``group`` ``"all"``, then per scorer a :func:`card` for each
+    value of column ``by`` (one of :data:`BY`) among its finite rows, in sorted order, with that value as ``group``."""
+    if by not in BY:
+        raise ScorecardError(f"cannot group by {by!r}; choose one of: {', '.join(BY)}")
+    out = [{"group": "all", **c} for c in cards]
+    for c in cards:
+        own = _scored(rows, c["predictor"])
+        for value in sorted({r[by] for r in own}):
+            out.append({"group": value, **card([r for r in own if r[by] == value], c["predictor"])})
+    return out
+
+
+def columns(cards: list[dict]) -> list[str]:
+    """:data:`COLUMNS`, with ``group`` after ``predictor`` when the cards are grouped (:func:`by_group`)."""
+    return [COLUMNS[0], "group", *COLUMNS[1:]] if cards and "group" in cards[0] else COLUMNS
+
+
 def write_scorecard(out: Path, cards: list[dict], sources: list[str]) -> None:
     """``scorecard.csv`` and ``scorecard.md`` in ``out``."""
-    write_csv(out / "scorecard.csv", cards, COLUMNS)
+    write_csv(out / "scorecard.csv", cards, columns(cards))
     write_text_atomic(
         out / "scorecard.md",
         "# Scorecard\n\nOn the SSIM scale against the true mean SSIM (nriqa.eval.scorecard), pooled over: "
@@ -190,7 +211,7 @@ def write_scorecard(out: Path, cards: list[dict], sources: list[str]) -> None:
         + f". `low_*`: images of at most {LOW_SPP} spp; `scene_srocc_*`: within each (scene, variant) of at least "
         f"{MIN_GROUP} images; `ladders_falling`: ladders whose prediction falls by more than {MAX_DROP}; "
         f"`families_off`: families whose bias exceeds {FAMILY_BIAS} in size.\n\n"
-        + markdown_table(cards, COLUMNS, digits=4),
+        + markdown_table(cards, columns(cards), digits=4),
     )
 
 
@@ -203,10 +224,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--without", action="append", default=[], metavar="FAMILY", help="leave a scene family's images out (repeat)"
     )
+    parser.add_argument(
+        "--by", choices=BY, default=None, help="add a row per scorer and scene family or sampling algorithm"
+    )
     args = parser.parse_args(argv)
     try:
         rows = [r for r in read_rows(args.images) if r["scene"] not in args.without]
         cards = scorecard(rows, args.predictor, args.base)
+        if args.by:
+            cards = by_group(rows, cards, args.by)
         if not args.predictor:
             scaled = on_ssim_scale(rows)
             raw = [n for n in dict.fromkeys(r["predictor"] for r in rows) if n not in scaled]
@@ -217,7 +243,7 @@ def main(argv: list[str] | None = None) -> None:
             write_scorecard(Path(args.out), cards, args.images)
     except ScorecardError as exc:
         sys.exit(f"error: {exc}")
-    print(markdown_table(cards, COLUMNS, digits=4), end="")
+    print(markdown_table(cards, columns(cards), digits=4), end="")
     if args.out:
         print(f"wrote {Path(args.out) / 'scorecard.md'}")
 
