@@ -16,6 +16,7 @@ PARAMS = {
     "map_mean": 2 * 371_700,
     "unet_fast": 371_700,
     "unet_fast_albedo": 375_156,
+    "unet_fast_ssim": 371_832,
     "unet_fast_twin": 375_156,
 }
 

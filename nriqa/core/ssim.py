@@ -79,23 +79,44 @@ def ssim_map(x: Tensor, y: Tensor) -> Tensor:
     # the cancellation in E[x^2] - E[x]^2, which matters in float32.
     shift = 0.5 * (gx.mean(dim=(-2, -1), keepdim=True) + gy.mean(dim=(-2, -1), keepdim=True))
     cx, cy = gx - shift, gy - shift
-    g = _gaussian_1d(gx.dtype, gx.device)
-    stats = torch.cat([cx, cy, cx * cx, cy * cy, cx * cy], dim=1)
-    n = stats.shape[1]
-    stats = F.pad(stats, (pad, pad, pad, pad), mode="reflect")
-    stats = F.conv2d(stats, g.view(1, 1, 1, WINDOW).expand(n, 1, 1, WINDOW), groups=n)
-    stats = F.conv2d(stats, g.view(1, 1, WINDOW, 1).expand(n, 1, WINDOW, 1), groups=n)
+    stats = _window_means(torch.cat([cx, cy, cx * cx, cy * cy, cx * cy], dim=1))
     mcx, mcy, mxx, myy, mxy = stats.split(1, dim=1)
 
     vx = mxx - mcx * mcx
     vy = myy - mcy * mcy
     cov = mxy - mcx * mcy
-    mx, my = mcx + shift, mcy + shift
+    return ssim_from_moments(mcx + shift, mcy + shift, vx, vy, cov)
+
+
+def _window_means(stats: Tensor) -> Tensor:
+    """Gaussian-window means (11x11, sigma 1.5, separable) of each channel of ``stats``, reflect-padded by 5 px."""
+    pad = WINDOW // 2
+    g = _gaussian_1d(stats.dtype, stats.device)
+    n = stats.shape[1]
+    stats = F.pad(stats, (pad, pad, pad, pad), mode="reflect")
+    stats = F.conv2d(stats, g.view(1, 1, 1, WINDOW).expand(n, 1, 1, WINDOW), groups=n)
+    return F.conv2d(stats, g.view(1, 1, WINDOW, 1).expand(n, 1, WINDOW, 1), groups=n)
+
+
+def ssim_from_moments(mx: Tensor, my: Tensor, vx: Tensor, vy: Tensor, cov: Tensor) -> Tensor:
+    """SSIM from local means, variances and covariance (the formula of :func:`ssim_map`), clipped to [0, 1]."""
     c1 = (K1 * DATA_RANGE) ** 2
     c2 = (K2 * DATA_RANGE) ** 2
     num = (2 * mx * my + c1) * (2 * cov + c2)
     den = (mx * mx + my * my + c1) * (vx + vy + c2)
     return (num / den).clamp(0.0, 1.0)
+
+
+def local_moments(gray: Tensor) -> tuple[Tensor, Tensor]:
+    """Local mean and variance of ``(B, 1, H, W)`` ``gray`` in :func:`ssim_map`'s window and padding.
+
+    The variance is the population variance, taken about the image's mean (as :func:`ssim_map` does)
+    and floored at 0. Images must be at least 6x6.
+    """
+    shift = gray.mean(dim=(-2, -1), keepdim=True)
+    c = gray - shift
+    mc, mcc = _window_means(torch.cat([c, c * c], dim=1)).split(1, dim=1)
+    return mc + shift, (mcc - mc * mc).clamp_min(0.0)
 
 
 def correct_dual_buffer(s_ab: Tensor) -> Tensor:

@@ -82,4 +82,4 @@ def init_keras_(module: nn.Module) -> nn.Module:
 
 
 # Imported last: the model modules register themselves with the functions above.
-from nriqa.models import dual_fast, fcnn, fcnn_fast, map_mean, patch_cnn, unet_fast  # noqa: E402,F401
+from nriqa.models import dual_fast, fcnn, fcnn_fast, map_mean, patch_cnn, unet_fast, unet_ssim  # noqa: E402,F401
