@@ -75,17 +75,21 @@ def ssim_map(x: Tensor, y: Tensor) -> Tensor:
     if h <= pad or w <= pad:
         raise ValueError(f"ssim_map: images must be at least {pad + 1}x{pad + 1} pixels, got {h}x{w}")
 
+    return ssim_from_moments(*pair_moments(gx, gy))
+
+
+def pair_moments(gx: Tensor, gy: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+    """Local means, variances and covariance ``(mu_x, mu_y, var_x, var_y, cov_xy)`` of two ``(B,1,H,W)`` gray images.
+
+    :func:`ssim_map`'s window, padding and population (co)variances; what :func:`ssim_from_moments` takes.
+    """
     # (Co)variances are shift-invariant; taking them about each image pair's mean avoids most of
     # the cancellation in E[x^2] - E[x]^2, which matters in float32.
     shift = 0.5 * (gx.mean(dim=(-2, -1), keepdim=True) + gy.mean(dim=(-2, -1), keepdim=True))
     cx, cy = gx - shift, gy - shift
     stats = _window_means(torch.cat([cx, cy, cx * cx, cy * cy, cx * cy], dim=1))
     mcx, mcy, mxx, myy, mxy = stats.split(1, dim=1)
-
-    vx = mxx - mcx * mcx
-    vy = myy - mcy * mcy
-    cov = mxy - mcx * mcy
-    return ssim_from_moments(mcx + shift, mcy + shift, vx, vy, cov)
+    return mcx + shift, mcy + shift, mxx - mcx * mcx, myy - mcy * mcy, mxy - mcx * mcy
 
 
 def _window_means(stats: Tensor) -> Tensor:

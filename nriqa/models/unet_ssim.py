@@ -24,7 +24,7 @@ from nriqa.core.tonemap import luminance
 from nriqa.models import init_keras_, register_model
 from nriqa.models.unet_fast import UNetFast
 
-__all__ = ["UNetSSIM", "unet_fast_ssim"]
+__all__ = ["UNetSSIM", "composed_ssim", "unet_fast_ssim"]
 
 
 class UNetSSIM(UNetFast):
@@ -43,10 +43,17 @@ class UNetSSIM(UNetFast):
         return z[:, :1].sigmoid(), z[:, 1:2]
 
     def forward(self, x: Tensor) -> Tensor:
-        share, shift = self.unknowns(x)
-        mean, var = local_moments(luminance(x))
-        signal = var * (1 - share)
-        return ssim_from_moments(mean, (mean + shift).clamp_min(0.0), var, signal, signal)
+        return composed_ssim(x, *self.unknowns(x))
+
+
+def composed_ssim(x: Tensor, share: Tensor, shift: Tensor) -> Tensor:
+    """SSIM map of the LDR image ``x`` ``(B,3,H,W)`` given each window's noise share and mean shift ``(B,1,H,W)``.
+
+    ``mu_y = mu_x + shift`` (floored at 0) and ``var_y = cov_xy = (1 - share) var_x``, ``x``'s own local moments.
+    """
+    mean, var = local_moments(luminance(x))
+    signal = var * (1 - share)
+    return ssim_from_moments(mean, (mean + shift).clamp_min(0.0), var, signal, signal)
 
 
 @register_model
