@@ -67,6 +67,19 @@ def checkpoints_scorer(ckpts: list[str | Path], window: int | None = None):
     return Scorer(MapMean([load_net_from_checkpoint(p) for p in ckpts], window).eval(), window=window)
 
 
+def fold_checkpoints(run: str | Path) -> dict[str, Path]:
+    """Each fold's ``last.ckpt`` of a cross-validation run (``nriqa-crossval``), by the scene it held out.
+
+    Raises:
+        EvaluationError: the run has no finished fold.
+    """
+    run = Path(run)
+    ckpts = {p.parents[1].name: p for p in sorted(run.glob("folds/*/checkpoints/last.ckpt"))}
+    if not ckpts:
+        raise EvaluationError(f"{run}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
+    return ckpts
+
+
 class CrossvalPredictor(ScorerPredictor):
     """A cross-validation run (``nriqa-crossval``) as one predictor.
 
@@ -83,10 +96,7 @@ class CrossvalPredictor(ScorerPredictor):
         self.run_dir = Path(run_dir)  # as given: several runs joined with "+" are named together in errors
         folds = []
         for run in runs:
-            ckpts = {p.parents[1].name: p for p in sorted(run.glob("folds/*/checkpoints/last.ckpt"))}
-            if not ckpts:
-                raise EvaluationError(f"{run}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
-            folds.append(ckpts)
+            folds.append(fold_checkpoints(run))
         scenes = sorted(set.intersection(*(set(f) for f in folds)))
         if not scenes:
             raise EvaluationError(f"{run_dir}: the runs hold out no scene in common")

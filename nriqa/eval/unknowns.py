@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import sys
 from collections import defaultdict
-from pathlib import Path
 
 import torch
 from torch import Tensor, nn
@@ -28,6 +27,7 @@ from nriqa.core.ssim import local_moments, pair_moments, ssim_map
 from nriqa.core.tonemap import luminance
 from nriqa.errors import NriqaError
 from nriqa.eval.dataset import load_dataset, records_of
+from nriqa.eval.predictors import fold_checkpoints
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table
 from nriqa.models.unet_ssim import composed_ssim
@@ -111,11 +111,7 @@ def _fold_nets(crossval: str | None, checkpoint: str | None) -> dict[str | None,
     """Networks by held-out scene (``--crossval``) or one for every scene (key ``None``, ``--checkpoint``)."""
     if checkpoint:
         return {None: load_net_from_checkpoint(checkpoint)}
-    run = Path(crossval)
-    ckpts = {p.parents[1].name: p for p in sorted(run.glob("folds/*/checkpoints/last.ckpt"))}
-    if not ckpts:
-        raise UnknownsError(f"{run}: no folds/<scene>/checkpoints/last.ckpt; run nriqa-crossval first")
-    return {scene: load_net_from_checkpoint(path) for scene, path in ckpts.items()}
+    return {scene: load_net_from_checkpoint(path) for scene, path in fold_checkpoints(crossval).items()}
 
 
 def split_dataset(data: list[str], nets: dict[str | None, nn.Module], scenes: list[str] | None) -> list[dict]:
