@@ -30,7 +30,7 @@ from nriqa.eval.dataset import load_dataset, records_of
 from nriqa.eval.predictors import fold_checkpoints
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.tables import markdown_table
-from nriqa.models.unet_ssim import composed_ssim
+from nriqa.models.unet_ssim import ssim_from_unknowns
 from nriqa.training.checkpoint import load_net_from_checkpoint
 
 __all__ = ["READINGS", "UnknownsError", "error_split", "true_unknowns", "main"]
@@ -55,7 +55,7 @@ def true_unknowns(x: Tensor, y: Tensor) -> tuple[Tensor, Tensor]:
     """
     mx, my, vx, _, cov = pair_moments(luminance(x), luminance(y))
     busy = vx > FLAT_VARIANCE
-    share = torch.where(busy, 1 - cov / torch.where(busy, vx, torch.ones_like(vx)), torch.zeros_like(vx))
+    share = torch.where(busy, 1 - cov / vx.clamp_min(FLAT_VARIANCE), 0.0)
     return share.clamp(0.0, 1.0), my - mx
 
 
@@ -72,14 +72,14 @@ def error_split(net: nn.Module, x: Tensor, y: Tensor) -> dict[str, float]:
         )
     share, shift = net.unknowns(x)
     true_share, true_shift = true_unknowns(x, y)
+    mean, var = local_moments(luminance(x))
     out = {
         "truth": float(ssim_map(x, y).mean()),
-        "predicted": float(composed_ssim(x, share, shift).mean()),
-        "true_shift": float(composed_ssim(x, share, true_shift).mean()),
-        "true_share": float(composed_ssim(x, true_share, shift).mean()),
-        "true_both": float(composed_ssim(x, true_share, true_shift).mean()),
+        "predicted": float(ssim_from_unknowns(mean, var, share, shift).mean()),
+        "true_shift": float(ssim_from_unknowns(mean, var, share, true_shift).mean()),
+        "true_share": float(ssim_from_unknowns(mean, var, true_share, shift).mean()),
+        "true_both": float(ssim_from_unknowns(mean, var, true_share, true_shift).mean()),
     }
-    _, var = local_moments(luminance(x))
     weight = var.sum()
     if weight > 0:
         out["share"] = float((share * var).sum() / weight)

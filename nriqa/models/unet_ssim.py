@@ -24,7 +24,7 @@ from nriqa.core.tonemap import luminance
 from nriqa.models import init_keras_, register_model
 from nriqa.models.unet_fast import UNetFast
 
-__all__ = ["UNetSSIM", "composed_ssim", "unet_fast_ssim"]
+__all__ = ["UNetSSIM", "composed_ssim", "ssim_from_unknowns", "unet_fast_ssim"]
 
 
 class UNetSSIM(UNetFast):
@@ -51,7 +51,11 @@ def composed_ssim(x: Tensor, share: Tensor, shift: Tensor) -> Tensor:
 
     ``mu_y = mu_x + shift`` (floored at 0) and ``var_y = cov_xy = (1 - share) var_x``, ``x``'s own local moments.
     """
-    mean, var = local_moments(luminance(x))
+    return ssim_from_unknowns(*local_moments(luminance(x)), share, shift)
+
+
+def ssim_from_unknowns(mean: Tensor, var: Tensor, share: Tensor, shift: Tensor) -> Tensor:
+    """:func:`composed_ssim` from the image's local moments (:func:`nriqa.core.ssim.local_moments` of its luminance)."""
     signal = var * (1 - share)
     return ssim_from_moments(mean, (mean + shift).clamp_min(0.0), var, signal, signal)
 
