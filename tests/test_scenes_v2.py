@@ -41,6 +41,7 @@ NEW = (
     "pebbles",
     "turned_light",
     "trinkets",
+    "blinds",
 )
 # On the tiny preset (references at 16x the ladder's top) one new ladder's top rung outruns its
 # reference: the lamps are small, and multi-jittered sampling finds them about 6x as efficiently as the
@@ -235,6 +236,29 @@ def test_strand_fibres_stand_taper_and_become_meshes():
     meshes = _tuft(np.random.default_rng(4), "t", [0.0, 0.0], 30, 0.4, 0.005)
     assert len(meshes) == CONTROL_POINTS - 1
     assert all(m.face_count() == 30 * (2 * 4 + 2 * 2) for m in meshes), "30 four-sided prisms a segment"
+
+
+def test_blinds_slats_screen_and_cables_span_the_window_and_the_room():
+    from data_gen.scenes.blinds import D, W, build, cables, screen, slats
+
+    pos, faces = slats(2.0, -1.0, 1.0, 0.5, 2.0, pitch=0.05, depth=0.04, tilt=30)
+    count = len(np.arange(0.525, 2.0, 0.05))
+    assert pos.shape == (4 * count, 3) and faces.shape == (2 * count, 3) and faces.max() == 4 * count - 1
+    assert set(np.round(pos[:, 2], 9)) == {-1.0, 1.0}, "every slat spans the window's width"
+    assert (pos[:, 0] < 2.0).all() and (pos[:, 1] > 0.5 - 0.04).all() and (pos[:, 1] < 2.0 + 0.04).all()
+    rise = pos[1::4, 1] - pos[0::4, 1]
+    assert np.allclose(rise, 0.04 * np.sin(np.radians(30))), "turned by the tilt about its long axis"
+    starts, ends = screen(2.02, -1.0, 1.0, 0.5, 2.0, 0.02)
+    assert starts.shape == ends.shape and len(starts) == 101 + 76 and (np.abs(starts[:, 0] - 2.02) < 0.01).all()
+    a, b = cables(np.random.default_rng(5), 3)
+    assert a.shape == b.shape == (36, 3) and np.allclose(a[1:12], b[:11]), "a cable's segments join end to end"
+    assert np.isclose(a[::12, 0], -W).all() and np.isclose(b[11::12, 0], W).all(), "strung from wall to wall"
+    mid = a[6::12, 1]
+    assert (mid < np.maximum(a[::12, 1], b[11::12, 1])).all(), "each sags between its ends"
+    assert (np.abs(a[:, 2]) <= D).all()
+    scene = build(np.random.default_rng(derive_seed(1, "blinds", 70)))
+    assert scene["sun"]["direction"][0] < 0 and scene["sun"]["direction"][1] < 0, "the sun shines in, downward"
+    assert scene["slats"].face_count() > 20
 
 
 def test_leaf_outline_is_pointed_and_notched():
