@@ -134,5 +134,8 @@ SPEC = register_scene(
         max_depth=8,
         summary="sun through slatted blinds, an insect screen and cables: thin regular stripes and slits in a room, "
         "exposure 2^U(-3,3)",
+        # against 16384-spp references ldsampler's 1024-spp rung failed the convergence check in 6 of 8 variants
+        # (stop 79, the heldout preset at 64x64; docs/results/dataset_v2.md)
+        rung_limits={"path_ldsampler": 256},
     )
 )
