@@ -122,7 +122,7 @@ def run_data_gen(*overrides: str, timeout: float = 600) -> subprocess.CompletedP
 
 @pytest.fixture(scope="session")
 def tiny(tmp_path_factory) -> Path:
-    """The tiny preset (8 scenes, 32x32), rendered once per test session."""
+    """The tiny preset (every scene family, one variant, 32x32), rendered once per test session."""
     pytest.importorskip("mitsuba")
     out = tmp_path_factory.mktemp("tiny")
     proc = run_data_gen("preset=tiny", f"out={out}")
