@@ -88,7 +88,7 @@ def build(rng: np.random.Generator) -> dict:
     patch = np.clip(patch, [-W + 0.2, 0, -D + 0.2], [W - 0.2, 0, D - 0.2])
     if rng.uniform() < 0.5:  # backlit: from the far side of the room toward the window
         sensor = camera(jitter(rng, [-1.6, 1.3, 0.0], [0.2, 0.3, 1.2]), jitter(rng, centre, [0, 0.3, 0.4]), 55)
-    else:  # onto the stripes on the floor (or the west wall when the sun is low)
+    else:  # down onto where the stripes land on the floor (the patch kept inside the room)
         sensor = camera(jitter(rng, [0.8, 1.9, 0.0], [0.8, 0.3, 1.2]), patch.tolist(), rng.uniform(45, 65))
     positions, faces = slats(
         W, z0, z1, y0, y1, pitch=rng.uniform(0.03, 0.08), depth=rng.uniform(0.025, 0.06), tilt=rng.uniform(0, 60)
