@@ -67,7 +67,6 @@ CBOX = {
     "cbox_indirect": ("cbox-indirect.xml", 12),
     "cbox_glass": ("cbox-glass.xml", 12),
 }
-HELDOUT_PRESET = REPO / "data_gen" / "configs" / "preset" / "heldout.yaml"
 # A loop's k-th render call uses seed + k: runs' seeds lie this far apart so that no two runs share samples.
 SEED_SPACING = 10_000
 PEER_GRID = (0.2, 0.1, 0.05, 0.025, 0.0125)  # equal time: thresholds tried on the families
@@ -75,11 +74,12 @@ DEFAULT_STOP_METHODS = ("peer", "learned", "two-buffer")  # two-buffer: only wit
 LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read from its signature in main
 
 
-def heldout_families() -> tuple[str, ...]:
-    """The families of data_gen's ``heldout`` preset: no shipped scorer learnt them (measured, never tuned on)."""
-    from omegaconf import OmegaConf
+def scene_families() -> tuple[str, ...]:
+    """Every data_gen family a loop can render: the eight above, the later ones the default learnt and the ones of
+    the ``heldout`` preset, which no scorer learnt. The peer's thresholds are tuned on the eight alone."""
+    from data_gen.scenes import list_scenes
 
-    return tuple(OmegaConf.load(HELDOUT_PRESET).scenes)
+    return tuple(list_scenes())
 
 
 def fail(message: str) -> None:
@@ -355,7 +355,7 @@ def parse(argv):
         args.seeds, args.curve_seeds, args.resolution, args.budget = 2, 1, 32, 0.3
         args.reference_spp, args.stop_max_spp, args.half_repeats = 256, 64, 2
     args.scenes = args.scenes.split(",")
-    known = (*FAMILIES, *heldout_families(), *CBOX)
+    known = (*scene_families(), *CBOX)
     unknown = [s for s in args.scenes if s not in known]
     if unknown:
         fail(f"unknown scene(s) {', '.join(unknown)}; choose from {', '.join(known)}")

@@ -136,12 +136,15 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
     assert (held in table) == ("cbox_official" in scenes), "a scene no scorer learnt gets a summary of its own"
 
 
-def test_held_out_scenes_are_the_heldout_presets_and_get_a_summary_of_their_own():
+def test_every_data_gen_family_is_a_scene_and_those_not_tuned_on_get_a_summary_of_their_own():
     sys.path.insert(0, str(REPO / "benchmarks"))
-    from render_compare import heldout_families
-    from render_compare_stop import held_out_summary
+    from omegaconf import OmegaConf
+    from render_compare import scene_families
+    from render_compare_stop import FAMILIES, held_out_summary
 
-    assert {"strands", "foliage", "shafts"} <= set(heldout_families())
+    held_back = OmegaConf.load(REPO / "data_gen" / "configs" / "preset" / "heldout.yaml").scenes
+    assert set(FAMILIES) < set(scene_families()), "the peer's eight and the later families"
+    assert {"foliage", "blinds", *held_back} <= set(scene_families()), "learnt later or held back alike"
 
     def row(scene, on):
         return {"scene": scene, "target": 0.9, "method": "learned", "true SSIM": 0.9, "spp": 64.0,

@@ -100,8 +100,8 @@ def test_the_scorer_gives_a_spread_only_when_asked_and_its_interval_to_hdr_image
 def test_the_shipped_spread_calibrations():
     scorer = Scorer.from_pretrained()
     iv, ldr = scorer.spread_interval, scorer.spread_ldr_interval
-    assert iv is not None and iv.count == 2798 and iv.level == 0.9 and "rule R73" in iv.source
-    assert ldr is not None and ldr.count == 8394 and "rule R74" in ldr.source
+    assert iv is not None and iv.count == 3132 and iv.level == 0.9 and "rule R73" in iv.source
+    assert ldr is not None and ldr.count == 9396 and "rule R74" in ldr.source
     assert Scorer.from_pretrained("fcnn_fast").spread_interval is None
 
 

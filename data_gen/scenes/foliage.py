@@ -5,9 +5,9 @@ own, and the sun broken by the canopy into a ground of sharp-edged spots: clutte
 into small bright and dark patches, which a render's noise must not be confused with. A third of the
 variants look up through the canopy against the sky (backlit leaves, a sky that clips). Real
 triangles, not alpha cut-outs: Mitsuba's shadow rays treat a ``mask`` BSDF's transparent texels as
-opaque, so cut-out cards would shadow the ground with their whole rectangle. No shipped network
-learnt this family (the ``heldout`` preset renders it to measure them). Exposure varies by
-2^U(-3, 3) per variant.
+opaque, so cut-out cards would shadow the ground with their whole rectangle. Held back at stops
+79-81 (no shipped network learnt it); the default learnt it at stop 82 and ``v2`` renders it since.
+Exposure varies by 2^U(-3, 3) per variant.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 Fibres a fraction of a pixel wide, dense enough to overlap, with their own sharp shadows on the
 ground: organic sub-pixel detail, curved and crowded where ``fine_geometry``'s rods are straight and
-spaced. No shipped network learnt this family (the ``heldout`` preset renders it to measure them).
-Exposure varies by 2^U(-3, 3) per variant.
+spaced. Held back at stops 79-81 (no shipped network learnt it); the default learnt it at stop 82
+and ``v2`` renders it since. Exposure varies by 2^U(-3, 3) per variant.
 """
 
 from __future__ import annotations
