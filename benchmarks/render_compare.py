@@ -75,8 +75,8 @@ LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read fr
 
 
 def scene_families() -> tuple[str, ...]:
-    """Every data_gen family a loop can render: the eight above, the later ones the default learnt and the ones of
-    the ``heldout`` preset, which no scorer learnt. The peer's thresholds are tuned on the eight alone."""
+    """Every data_gen family a loop can render: ``FAMILIES``, the later ones the default learnt and the ones of the
+    ``heldout`` preset, which no scorer learnt. The peer's thresholds are tuned on ``FAMILIES`` alone."""
     from data_gen.scenes import list_scenes
 
     return tuple(list_scenes())
@@ -448,7 +448,7 @@ def header(args, argv, scenes, scorers, variant, load_start, t_start) -> str:
         f"{args.resolution}x{args.resolution}; seeds {args.seeds} (early stopping {args.stop_seeds}, tuning "
         f"{args.tuning_seeds}, uniform's curve {args.curve_seeds} seeds of its own); steps of {args.spp_per_step} "
         f"spp growing to 25 % of those done; peer min spp {args.min_spp:g}. Training scenes (the shipped scorer "
-        f"learnt them; the peer's thresholds are tuned on them): {train}. Held out: {held}."
+        f"learnt them; the peer's thresholds are tuned on them): {train}. The others (nothing tuned on them): {held}."
         f"{'' if 'adaptive (two-buffer)' in scorers else ' No --twin-scorer: no two-buffer rows.'}\n\n"
         "References: " + "; ".join(f"{k}: {v[2]}" for k, v in scenes.items()) + "\n"
     )
