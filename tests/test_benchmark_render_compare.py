@@ -64,6 +64,14 @@ def test_choose_threshold_picks_the_one_on_target_most_often():
     assert on_target([0.894, 0.895, 0.92, 0.921], 0.9).tolist() == [False, True, True, False]
 
 
+def test_scenes_take_families_learnt_later_or_held_back(tmp_path):
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from render_compare import parse
+
+    scenes = ["foliage", "strands", "blinds", "shafts", "cornell"]
+    assert parse(["--out", str(tmp_path), "--scenes", ",".join(scenes)]).scenes == scenes
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
