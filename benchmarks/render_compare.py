@@ -74,14 +74,6 @@ DEFAULT_STOP_METHODS = ("peer", "learned", "two-buffer")  # two-buffer: only wit
 LOOP_DEFAULT = "loop"  # --map-spp left out: render_until's own default, read from its signature in main
 
 
-def scene_families() -> tuple[str, ...]:
-    """Every data_gen family a loop can render: ``FAMILIES``, the later ones the default learnt and the ones of the
-    ``heldout`` preset, which no scorer learnt. The peer's thresholds are tuned on ``FAMILIES`` alone."""
-    from data_gen.scenes import list_scenes
-
-    return tuple(list_scenes())
-
-
 def fail(message: str) -> None:
     print(f"render_compare: {message}", file=sys.stderr)
     raise SystemExit(2)
@@ -355,7 +347,9 @@ def parse(argv):
         args.seeds, args.curve_seeds, args.resolution, args.budget = 2, 1, 32, 0.3
         args.reference_spp, args.stop_max_spp, args.half_repeats = 256, 64, 2
     args.scenes = args.scenes.split(",")
-    known = (*scene_families(), *CBOX)
+    from data_gen.scenes import list_scenes  # any family: the peer's eight, those learnt later, the held-back ones
+
+    known = (*list_scenes(), *CBOX)
     unknown = [s for s in args.scenes if s not in known]
     if unknown:
         fail(f"unknown scene(s) {', '.join(unknown)}; choose from {', '.join(known)}")

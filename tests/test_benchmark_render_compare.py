@@ -147,12 +147,13 @@ def test_quick_mode_writes_the_tables_the_csvs_and_the_plot(tmp_path):
 def test_every_data_gen_family_is_a_scene_and_those_not_tuned_on_get_a_summary_of_their_own():
     sys.path.insert(0, str(REPO / "benchmarks"))
     from omegaconf import OmegaConf
-    from render_compare import scene_families
     from render_compare_stop import FAMILIES, held_out_summary
 
+    from data_gen.scenes import list_scenes
+
     held_back = OmegaConf.load(REPO / "data_gen" / "configs" / "preset" / "heldout.yaml").scenes
-    assert set(FAMILIES) < set(scene_families()), "the peer's eight and the later families"
-    assert {"foliage", "blinds", *held_back} <= set(scene_families()), "learnt later or held back alike"
+    assert set(FAMILIES) < set(list_scenes()), "the peer's eight and the later families"
+    assert {"foliage", "blinds", *held_back} <= set(list_scenes()), "learnt later or held back alike"
 
     def row(scene, on):
         return {"scene": scene, "target": 0.9, "method": "learned", "true SSIM": 0.9, "spp": 64.0,
