@@ -12,6 +12,7 @@ from torch.utils.data import DataLoader, TensorDataset
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
 from nriqa.data.converged import check_converged_p
+from nriqa.data.cutmix import check_cutmix_p
 from nriqa.data.anchors import Anchors
 from nriqa.data.ladders import check_span
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
@@ -83,6 +84,10 @@ class NRIQADataModule(L.LightningDataModule):
         converged_p: the share of training patches whose input is the reference itself, learnt at its target (1
             everywhere), anchored sets included (:mod:`nriqa.data.converged`); 0 (the default) draws none and
             leaves every other draw as it was. Single-image models only.
+        cutmix_p: the share of training patches that carry a rectangle of another training patch (its own image,
+            display and jitter), noisy image, reference, twin and albedo pass alike, before the target
+            (:mod:`nriqa.data.cutmix`); 0 (the default) draws none and leaves every other draw as it was. Not with
+            ``ladder_pairs``.
         anchor_scenes: scene families whose training patches learn the starting network's map instead of
             their SSIM target (with ``init_from``: :class:`nriqa.training.module.NRIQAModule`'s teacher),
             so a fine-tune on a few scenes of them keeps what the start learnt from many while the other
@@ -124,6 +129,7 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         converged_p: float = 0.0,
+        cutmix_p: float = 0.0,
         anchor_scenes: Sequence[str] = (),
         anchor_data: Sequence[str | os.PathLike] = (),
         ladder_pairs: bool = False,
@@ -157,6 +163,9 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, self.twins)
+        self.cutmix_p = check_cutmix_p(cutmix_p)
+        if self.cutmix_p and ladder_pairs:
+            raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -217,6 +226,7 @@ class NRIQADataModule(L.LightningDataModule):
             ladder_pairs=self.ladder_pairs,
             ladder_span=self.ladder_span,
             converged_p=self.converged_p,
+            cutmix_p=self.cutmix_p,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

@@ -19,6 +19,7 @@ from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
 from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
+from nriqa.data.cutmix import Box, check_cutmix_p, partner_generator, paste_batch, sample_box
 from nriqa.data.pixel_filter import (
     SIGMA_RANGE,
     apply_pixel_filter,
@@ -97,14 +98,15 @@ class TrainPatches(Dataset):
     ``display``) a display transform, then the jitter, then (with ``albedo_p``) an albedo texture, then
     (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`; never on images the manifest
     says were rendered through one), each applied to noisy image, twin and reference alike (with ``converged_p``
-    the noisy image of a share of the items is the reference itself: :mod:`nriqa.data.converged`), and the target
-    is computed from the textured, filtered, displayed, jittered pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
+    the noisy image of a share of the items is the reference itself: :mod:`nriqa.data.converged`; with ``cutmix_p``
+    a share of the items get a rectangle of a partner item of their own, made alike: :mod:`nriqa.data.cutmix`), and
+    the target is computed from the textured, filtered, displayed, jittered (pasted) pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
     the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchors`` each item
     is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`)
-    and the item is not a converged one (a reference learns its own target, 1): the
+    and the item is neither a converged nor a pasted one (a reference learns its own target, 1): the
     training module then learns the starting network's map there instead of the target
     (:class:`nriqa.training.module.NRIQAModule`). With ``ladder_pairs`` every odd item ``k`` is item ``k - 1``'s
     cut, display, jitter, texture and filter taken from another rung of its ladder within ``ladder_span``
@@ -134,9 +136,13 @@ class TrainPatches(Dataset):
         ladder_pairs: bool = False,
         ladder_span: int = 2,
         converged_p: float = 0.0,
+        cutmix_p: float = 0.0,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
+        self.cutmix_p = check_cutmix_p(cutmix_p)
+        if ladder_pairs and self.cutmix_p:
+            raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
         if ladder_pairs and length % 2:
             raise ValueError(f"ladder pairs need an even number of items per epoch, got {length}")
         check_patch_size(pairs, patch_size)
@@ -198,6 +204,7 @@ class TrainPatches(Dataset):
         """The random choices of item ``index``: image, position, display, jitter and albedo, from ``(seed, index)``.
 
         With ``ladder_pairs`` an odd ``index`` takes item ``index - 1``'s choices to another rung of its ladder.
+        With ``cutmix_p`` the rectangle its partner (:meth:`partner`) fills is drawn last.
         """
         if self.ladder_pairs and index % 2:
             first = self.draw(index - 1)
@@ -205,6 +212,16 @@ class TrainPatches(Dataset):
             other = pick_partner(self.partners[own], own, item_generator(self.seed, index))
             return dataclasses.replace(first, pair=self.pairs[other], image=other)
         g = item_generator(self.seed, index)
+        own = self.draw_from(g)
+        box = sample_box(g, self.cutmix_p, self.patch_size)  # drawn last: the rest as before
+        return own if box is None else dataclasses.replace(own, cutmix=box)
+
+    def partner(self, index: int) -> Draw:
+        """The random choices of the item whose rectangle item ``index`` carries, from a stream of its own."""
+        return self.draw_from(partner_generator(self.seed, index))
+
+    def draw_from(self, g: torch.Generator) -> Draw:
+        """One item's choices (image, position, display, jitter, albedo, filter, converged), drawn from ``g``."""
         image = self.pick_index(g)
         pair = self.pairs[image]
         h, w = pair.noisy.shape[-2:]
@@ -220,7 +237,7 @@ class TrainPatches(Dataset):
         sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn after: the rest as before
         if pair.record.pixel_filter != "box":
             sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
-        converged = sample_converged(g, self.converged_p)  # drawn last
+        converged = sample_converged(g, self.converged_p)
         return Draw(pair, y, x, display, jitter, albedo, sigma, image, converged)
 
     def __getitem__(self, index: int) -> tuple[Tensor, ...]:
@@ -233,6 +250,9 @@ class TrainPatches(Dataset):
         (the draws are the same, only the arithmetic is batched), at a fraction of the per-item cost.
         """
         draws = [self.draw(int(k)) for k in indices]
+        pasted = [i for i, d in enumerate(draws) if d.cutmix is not None]
+        boxes = {i: (draws[i].cutmix, len(draws) + n) for n, i in enumerate(pasted)}
+        draws = draws + [self.partner(int(indices[i])) for i in pasted]  # partners made alike, then pasted
         size = self.patch_size
         sources = [members_of(d.pair, self.twins, self.albedo_pass) for d in draws]
         members = [
@@ -245,11 +265,15 @@ class TrainPatches(Dataset):
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
         members = display_batch(draws, members[:shown]) + members[shown:]
         members = jitter_batch(draws, members)
+        members = [m[: len(indices)] for m in paste_batch(boxes, members)]
+        draws = draws[: len(indices)]
         noisy, ref = members[0], members[1]
         target = compute_target(self.target, noisy, ref)
         inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
         if self.anchors:
-            anchored = [torch.tensor(self.anchors(d.pair.record) and not d.converged) for d in draws]
+            anchored = [
+                torch.tensor(self.anchors(d.pair.record) and not d.converged and d.cutmix is None) for d in draws
+            ]
             return [(inputs[i].contiguous(), target[i], anchored[i]) for i in range(len(draws))]
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
 
@@ -267,6 +291,7 @@ class Draw:
     pixel_sigma: float | None = None  # the pixel filter's standard deviation (nriqa.data.pixel_filter), or none
     image: int = -1  # the index of ``pair`` among the training images
     converged: bool = False  # the input is the reference itself (nriqa.data.converged)
+    cutmix: Box | None = None  # the rectangle a partner item fills (nriqa.data.cutmix), or none
 
 
 def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
