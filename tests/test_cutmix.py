@@ -9,7 +9,7 @@ from test_batched_patches import MIX, draws_but, make_dm
 
 from nriqa.core.ssim import ssim_map
 from nriqa.data import patches
-from nriqa.data.cutmix import partner_generator, sample_box
+from nriqa.data.cutmix import Box, partner_generator, paste_batch, sample_box
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import item_generator
 from nriqa.data.targets import compute_target
@@ -83,9 +83,7 @@ def test_pasted_items_carry_their_partner_and_the_target_of_the_pasted_pair(synt
     assert 12 < seen < 36  # about half
 
 
-def test_the_target_is_computed_after_pasting():
-    from nriqa.data.cutmix import Box, paste_batch
-
+def test_paste_batch_fills_the_box_of_every_member_from_the_partner():
     g = torch.Generator().manual_seed(0)
     noisy = torch.rand(2, 3, 32, 32, generator=g)
     ref = torch.full((2, 3, 32, 32), 0.5)

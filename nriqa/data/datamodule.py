@@ -163,9 +163,7 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, self.twins)
-        self.cutmix_p = check_cutmix_p(cutmix_p)
-        if self.cutmix_p and ladder_pairs:
-            raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
+        self.cutmix_p = check_cutmix_p(cutmix_p, ladder_pairs)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene

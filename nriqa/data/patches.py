@@ -140,9 +140,7 @@ class TrainPatches(Dataset):
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
-        self.cutmix_p = check_cutmix_p(cutmix_p)
-        if ladder_pairs and self.cutmix_p:
-            raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
+        self.cutmix_p = check_cutmix_p(cutmix_p, ladder_pairs)
         if ladder_pairs and length % 2:
             raise ValueError(f"ladder pairs need an even number of items per epoch, got {length}")
         check_patch_size(pairs, patch_size)
