@@ -81,3 +81,61 @@ def test_crossval_refuses_a_warm_start(tmp_path, synthetic_dataset):
     cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "init_from=fcnn_fast")
     with pytest.raises(FoldError, match="must start every fold from random weights"):
         fold_scenes(cfg)
+
+
+def test_body_only_loads_all_but_the_head():
+    # unet_fast_ssim is unet_fast's body with a head of two maps: its body starts from the shipped default
+    net = create_model("unet_fast_ssim", window=64)
+    head = {k: v.clone() for k, v in net.state_dict().items() if k.startswith("head.")}
+    with pytest.raises(WarmStartError, match="do not fit the model being trained"):
+        warm_start(net, "unet_fast")  # the heads differ: nothing loads without body_only
+    assert warm_start(net, "unet_fast", body_only=True) is net
+    shipped = load_pretrained("unet_fast").state_dict()
+    state = net.state_dict()
+    body = [k for k in state if not k.startswith("head.")]
+    assert body and all(torch.equal(state[k], shipped[k]) for k in body)
+    assert head and all(torch.equal(state[k], v) for k, v in head.items())  # the head keeps its start
+
+
+def test_body_only_needs_a_head_and_a_matching_body():
+    with pytest.raises(WarmStartError, match="has no 'head' module"):
+        warm_start(create_model("fcnn_fast"), "fcnn_fast", body_only=True)
+    net = create_model("unet_fast_ssim", window=64, width=16)
+    with pytest.raises(WarmStartError, match="of another shape"):
+        warm_start(net, "unet_fast", body_only=True)
+
+
+def test_body_only_is_refused_without_a_source_or_with_anchors(tmp_path, synthetic_dataset):
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "init_body_only=true")
+    with pytest.raises(ValueError, match="init_body_only=true loads the body of init_from's network"):
+        train(cfg)
+    cfg = compose_cfg(
+        tmp_path,
+        synthetic_dataset,
+        "experiment=fcnn_fast",
+        "init_from=patch_cnn",
+        "init_body_only=true",
+        "data.anchor_scenes=[alpha]",
+    )
+    with pytest.raises(ValueError, match="init_body_only=true starts with an untrained head"):
+        train(cfg)
+
+
+def test_training_starts_from_the_shipped_body(tmp_path, synthetic_dataset):
+    cfg = compose_cfg(
+        tmp_path,
+        synthetic_dataset,
+        "experiment=unet_fast",
+        "model.net.name=unet_fast_ssim",
+        "data.patch_size=64",
+        "debug=fdr",
+        "init_from=unet_fast",
+        "init_body_only=true",
+        "model.optimizer.lr=0",
+    )
+    _, objects = train(cfg)
+    shipped = dict(load_pretrained("unet_fast").named_parameters())
+    trained = dict(objects["model"].net.named_parameters())
+    body = [k for k in trained if not k.startswith("head.")]
+    assert body and all(torch.equal(trained[k], shipped[k]) for k in body)
+    assert objects["model"].hparams["init_body_only"] is True

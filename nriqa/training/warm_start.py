@@ -4,7 +4,9 @@
 (``unet_fast``), a ``.pt`` with its card beside it, or a training checkpoint (``.ckpt``). Shipped
 weights that average several runs (``map_mean``) hold one network per member; ``init_member``
 picks which one starts this run. The network being trained must be the same model with the same
-settings: every weight name and shape must match, or nothing is loaded.
+settings: every weight name and shape must match, or nothing is loaded. ``init_body_only=true`` loads
+everything but the output head (the weights under ``head.``) and leaves the head at its random start:
+a model with another head on the same body, e.g. ``unet_fast_ssim`` started from ``unet_fast``.
 
     >>> net = create_model("unet_fast", window=64)  # doctest: +SKIP
     >>> warm_start(net, "unet_fast", member=0)  # doctest: +SKIP
@@ -58,16 +60,32 @@ def _member(net: nn.Module, source: str, member: int | None) -> nn.Module:
     return members[member]
 
 
-def warm_start(net: nn.Module, source: str, member: int | None = None) -> nn.Module:
+HEAD = "head."
+
+
+def _without_head(state: dict) -> dict:
+    return {k: v for k, v in state.items() if not k.startswith(HEAD)}
+
+
+def warm_start(net: nn.Module, source: str, member: int | None = None, body_only: bool = False) -> nn.Module:
     """Load the weights of ``source`` (member ``member`` of an average) into ``net``, in place.
 
-    Returns ``net``. Nothing is loaded unless every parameter and buffer name and shape matches.
+    Returns ``net``. Nothing is loaded unless every parameter and buffer name and shape matches; with
+    ``body_only`` the weights under ``head.`` are left out on both sides and ``net``'s head keeps its start.
 
     Raises:
-        WarmStartError: a member choice that does not fit the source, or weights of another model.
+        WarmStartError: a member choice that does not fit the source, weights of another model, or
+            ``body_only`` for a network without a ``head``.
     """
     src = _member(source_net(source), source, member).state_dict()
     dst = net.state_dict()
+    if body_only:
+        if not any(k.startswith(HEAD) for k in dst):
+            raise WarmStartError(
+                f"init_body_only=true keeps the head of the model being trained, but it has no 'head' module; "
+                f"drop init_body_only to load all of init_from={source}"
+            )
+        src, dst = _without_head(src), _without_head(dst)
     missing = sorted(set(dst) - set(src))
     extra = sorted(set(src) - set(dst))
     shapes = sorted(k for k in set(src) & set(dst) if src[k].shape != dst[k].shape)
@@ -78,5 +96,5 @@ def warm_start(net: nn.Module, source: str, member: int | None = None) -> nn.Mod
             f"{len(extra)} unexpected, {len(shapes)} of another shape, e.g. {first!r}); train the same model "
             "with the same settings as the source (its card's 'spec' or checkpoint's net)"
         )
-    net.load_state_dict(src)
+    net.load_state_dict(src, strict=not body_only)
     return net
