@@ -91,3 +91,6 @@ def test_refresh_after_training_rewrites_last_checkpoint(tmp_path, synthetic_dat
     saved = {k: v for k, v in last["state_dict"].items() if "running_mean" in k}
     assert saved and all(torch.equal(v, net.state_dict()[k[len("net.") :]]) for k, v in saved.items())
     assert last["hyper_parameters"]["bn_refresh"] == 3
+    # no held-out scene here: the checkpoint the run reports is the refreshed one, not the epoch's before it
+    assert cfg.data.get("val_scene") is None
+    assert objects["best_ckpt"] == str(tmp_path / "checkpoints" / "last.ckpt")

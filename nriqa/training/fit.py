@@ -167,6 +167,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         _refresh_batchnorm(trainer, model, datamodule, int(cfg.bn_refresh))
     last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
     best = (ckpt_cb.best_model_path if ckpt_cb is not None else "") or str(last)
+    if cfg.get("bn_refresh") and cfg.data.get("val_scene") is None and last:
+        best = str(last)  # no held-out scene keeps the latest, and only last.ckpt holds its refreshed statistics
     objects = {
         "cfg": cfg,
         "datamodule": datamodule,
