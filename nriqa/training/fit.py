@@ -111,24 +111,28 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         _fit_without_val(cfg)
 
     ladder_weight = check_ladder_weight(cfg.get("ladder_weight") or 0.0)  # checked before any work
-    if cfg.get("init_body_only") and not cfg.get("init_from"):
+    body_only = bool(cfg.get("init_body_only"))
+    if body_only and not cfg.get("init_from"):
         raise ValueError("init_body_only=true loads the body of init_from's network: set init_from")
     # ladder pairs are drawn exactly when the loss uses them (nriqa.data.ladders)
     datamodule = hydra.utils.instantiate(cfg.data, ladder_pairs=ladder_weight > 0)
     # Load (and tone-map) the data first: a wrong path or scene fails before anything is built.
     datamodule.setup("fit")
+    if datamodule.anchors and not cfg.get("init_from"):
+        raise ValueError(
+            "data.anchor_scenes / data.anchor_data learn the starting network's map there: the run needs init_from"
+        )
+    if datamodule.anchors and body_only:
+        raise ValueError(
+            "data.anchor_scenes / data.anchor_data learn the starting network's map, but init_body_only=true starts "
+            "with an untrained head: drop the anchors or init_body_only"
+        )
     hard = cfg.get("hard_sampling") or {}
     # both checked before any work; a power of 0 is refused, not read as the default
     mix, power = check_mix(hard.get("mix") or 0.0), check_power(hard.get("power", 1.0))
     model: NRIQAModule = hydra.utils.instantiate(
         cfg.model, freeze_bn=bool(cfg.get("freeze_bn")), ladder_weight=ladder_weight
     )
-    body_only = bool(cfg.get("init_body_only"))
-    if body_only and datamodule.anchors:
-        raise ValueError(
-            "data.anchor_scenes / data.anchor_data learn the starting network's map, but init_body_only=true starts "
-            "with an untrained head: drop the anchors or init_body_only"
-        )
     if cfg.get("init_from"):
         warm_start(model.net, str(cfg.init_from), cfg.get("init_member"), body_only=body_only)
         model.hparams.update(
@@ -137,10 +141,6 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     if cfg.get("bn_estimate"):
         _estimate_batchnorm(model, datamodule, int(cfg.bn_estimate), "bn_estimate")
     if datamodule.anchors:
-        if not cfg.get("init_from"):
-            raise ValueError(
-                "data.anchor_scenes / data.anchor_data learn the starting network's map there: the run needs init_from"
-            )
         model.set_teacher(model.net)  # the start, after init_from and bn_estimate
         model.hparams.update(datamodule.anchors.describe())
     if mix:
