@@ -94,3 +94,16 @@ def test_refresh_after_training_rewrites_last_checkpoint(tmp_path, synthetic_dat
     # no held-out scene here: the checkpoint the run reports is the refreshed one, not the epoch's before it
     assert cfg.data.get("val_scene") is None
     assert objects["best_ckpt"] == str(tmp_path / "checkpoints" / "last.ckpt")
+
+
+def test_refresh_with_a_held_out_scene_reports_the_refreshed_checkpoint(tmp_path, synthetic_dataset):
+    # the epoch checkpoint of lowest val/loss was written before the refresh: nriqa-crossval's fold tables
+    # must score the refreshed weights, the file nriqa-evaluate --crossval reads too
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=fcnn_fast", "bn_refresh=3", "data.val_scene=beta")
+    _, objects = train(cfg)
+    last = tmp_path / "checkpoints" / "last.ckpt"
+    assert objects["best_ckpt"] == str(last)
+    assert any(p.name != "last.ckpt" for p in (tmp_path / "checkpoints").glob("*.ckpt"))  # an epoch file exists
+    saved = torch.load(last, map_location="cpu", weights_only=True)["state_dict"]
+    net = objects["model"].net.state_dict()
+    assert all(torch.equal(v, net[k[len("net.") :]]) for k, v in saved.items() if "running_var" in k)

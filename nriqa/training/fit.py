@@ -167,8 +167,11 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         _refresh_batchnorm(trainer, model, datamodule, int(cfg.bn_refresh))
     last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
     best = (ckpt_cb.best_model_path if ckpt_cb is not None else "") or str(last)
-    if cfg.get("bn_refresh") and cfg.data.get("val_scene") is None and last:
-        best = str(last)  # no held-out scene keeps the latest, and only last.ckpt holds its refreshed statistics
+    if cfg.get("bn_refresh") and last:
+        # only last.ckpt holds the refreshed statistics: an epoch checkpoint (the latest, or a held-out scene's
+        # lowest val/loss) was written before the refresh, so the run reports, and nriqa-crossval's tables score,
+        # last.ckpt
+        best = str(last)
     objects = {
         "cfg": cfg,
         "datamodule": datamodule,
