@@ -220,6 +220,7 @@ def test_stacked_fold_that_skips_nonfinite_steps_counts_them(synthetic_dataset, 
     [
         ("hard_sampling.mix=0.5", "hard_sampling.mix"),
         ("freeze_bn=true", "freeze_bn"),
+        ("freeze_bn_from=1", "freeze_bn_from"),
         ("bn_refresh=2", "bn_refresh"),
         ("data.anchor_scenes=[alpha]", "data.anchor_scenes"),
         ("+trainer.gradient_clip_val=1.0", "gradient_clip_val"),

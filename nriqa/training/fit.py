@@ -17,6 +17,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.losses.ladder import check_ladder_weight
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
+from nriqa.training.frozen_tail import FrozenBatchNormTail, check_tail
 from nriqa.training.hard_sampling import check_mix, check_power, draw_weights
 from nriqa.training.last_checkpoint import LastCheckpoint
 from nriqa.training.module import NRIQAModule
@@ -111,6 +112,13 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         _fit_without_val(cfg)
 
     ladder_weight = check_ladder_weight(cfg.get("ladder_weight") or 0.0)  # checked before any work
+    tail = check_tail(
+        cfg.get("freeze_bn_from"),
+        cfg.get("freeze_bn_batches", 500),
+        int(cfg.trainer.max_epochs),
+        bool(cfg.get("freeze_bn")),
+        cfg.get("bn_refresh"),
+    )
     body_only = bool(cfg.get("init_body_only"))
     if body_only and not cfg.get("init_from"):
         raise ValueError("init_body_only=true loads the body of init_from's network: set init_from")
@@ -152,6 +160,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
             f"worst (error {summary['worst_1pct_error']:.3f}) get {summary['worst_1pct_share']:.1%} of the draws"
         )
     callbacks = _instantiate_group(cfg.get("callbacks"))
+    if tail:
+        callbacks.append(FrozenBatchNormTail(*tail))
     loggers = _instantiate_group(cfg.get("logger"))
     trainer: L.Trainer = hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=loggers or False)
     for lg in loggers:
@@ -167,10 +177,10 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         _refresh_batchnorm(trainer, model, datamodule, int(cfg.bn_refresh))
     last = next((c.path for c in trainer.callbacks if isinstance(c, LastCheckpoint) and c.path.is_file()), "")
     best = (ckpt_cb.best_model_path if ckpt_cb is not None else "") or str(last)
-    if cfg.get("bn_refresh") and last:
-        # only last.ckpt holds the refreshed statistics: an epoch checkpoint (the latest, or a held-out scene's
-        # lowest val/loss) was written before the refresh, so the run reports, and nriqa-crossval's tables score,
-        # last.ckpt
+    if (cfg.get("bn_refresh") or tail) and last:
+        # only last.ckpt holds the refreshed statistics (or the end of the frozen tail): an epoch checkpoint (the
+        # latest, or a held-out scene's lowest val/loss) may come from before, so the run reports, and
+        # nriqa-crossval's tables score, last.ckpt
         best = str(last)
     objects = {
         "cfg": cfg,

@@ -10,6 +10,7 @@ exactly its own gradient, and Adam's update is per element, so each fold follows
 (tested against the per-fold training of ``nriqa-crossval``: the same patches, initial weights and updates).
 
 What it does not do, and refuses with one line: hard-example sampling, ``bn_estimate``, ``bn_refresh``, ``freeze_bn``,
+``freeze_bn_from``,
 ``data.anchor_scenes`` or ``data.anchor_data``, several devices, gradient clipping or accumulation, another
 precision, a scheduler that watches a metric.
 It validates nothing while training (the fold tables use each fold's end of training, ``last.ckpt``, the
@@ -183,6 +184,8 @@ def check_supported(cfg: DictConfig) -> None:
         why.append("bn_refresh")
     if cfg.get("freeze_bn"):
         why.append("freeze_bn")
+    if cfg.get("freeze_bn_from") is not None:
+        why.append("freeze_bn_from")
     if (cfg.get("data") or {}).get("anchor_scenes"):
         why.append("data.anchor_scenes")
     if (cfg.get("data") or {}).get("anchor_data"):
