@@ -40,7 +40,7 @@ def test_without_a_tail_training_moves_the_statistics(tmp_path, synthetic_datase
 def _tiny_module() -> SimpleNamespace:
     torch.manual_seed(0)
     net = nn.Sequential(nn.Conv2d(3, 4, 3), nn.BatchNorm2d(4)).train()
-    return SimpleNamespace(net=net, freeze_bn=False, hparams={}, device=torch.device("cpu"))
+    return SimpleNamespace(net=net, freeze_bn=False, hparams={})
 
 
 def test_a_run_resumed_past_the_start_stays_frozen_without_estimating_again():

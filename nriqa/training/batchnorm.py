@@ -48,9 +48,10 @@ def _inputs(batch) -> Tensor:
 def estimate_batchnorm(net: nn.Module, batches: Iterable, n: int) -> int:
     """Set every batch-norm layer's running statistics to their mean over the first ``n`` ``batches``.
 
-    Each batch is run forward in train mode (so each layer sees the statistics it trains with); the
-    running mean and variance become the plain average over those batches (momentum ``None``). The
-    weights, the layers' momentum and the network's train/eval mode are as they were.
+    Each batch is run forward in train mode (so each layer sees the statistics it trains with), its input
+    moved to the network's device (a network on a GPU, batches from a CPU loader); the running mean and
+    variance become the plain average over those batches (momentum ``None``). The weights, the layers'
+    momentum and the network's train/eval mode are as they were.
 
     Returns:
         the number of batches used (fewer than ``n`` when ``batches`` runs out first).
@@ -63,6 +64,7 @@ def estimate_batchnorm(net: nn.Module, batches: Iterable, n: int) -> int:
     layers = batchnorms(net)
     if not layers:
         return 0
+    device = layers[0].running_mean.device  # where the network runs: its statistics live there
     modes = {m: m.training for m in net.modules()}
     momenta = [m.momentum for m in layers]
     for m in layers:
@@ -72,7 +74,7 @@ def estimate_batchnorm(net: nn.Module, batches: Iterable, n: int) -> int:
     used = 0
     try:
         for batch in batches:
-            net(_inputs(batch))
+            net(_inputs(batch).to(device))
             used += 1
             if used >= n:
                 break

@@ -2,7 +2,7 @@
 
 A network trained with batch norm in train mode normalises each batch of patches by that batch's own
 statistics; the Scorer runs it on running averages. Trained from scratch, that mismatch left the
-composed-map recipe reading its own training images about 0.012 too good (mean SSIM); the same run
+composed-map recipe reading its own training images +0.014 too good (mean SSIM); the same run
 polished for 15 epochs with the statistics fixed read them +0.005 (docs/results/evaluation.md, stop 86).
 
 ``nriqa-train ... freeze_bn_from=E [freeze_bn_batches=N]``: at the start of epoch ``E`` (0-based) the
@@ -14,10 +14,7 @@ A run resumed past ``E`` keeps the statistics its checkpoint holds and stays fro
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
-
 import lightning as L
-import torch
 
 from nriqa.training.batchnorm import estimate_batchnorm, freeze_batchnorm, repeated
 
@@ -50,12 +47,6 @@ def check_tail(from_epoch, batches, max_epochs: int, freeze_bn: bool, bn_refresh
     return from_epoch, batches
 
 
-def _to(device: torch.device, batches: Iterable) -> Iterator:
-    # the network's device: a run on a GPU holds its network there while the loader makes CPU batches
-    for batch in batches:
-        yield batch[0].to(device) if isinstance(batch, (tuple, list)) else batch.to(device)
-
-
 class FrozenBatchNormTail(L.Callback):
     """At the start of epoch ``from_epoch``: estimate the statistics over ``batches`` training batches, then freeze.
 
@@ -72,8 +63,7 @@ class FrozenBatchNormTail(L.Callback):
         if epoch < self.from_epoch or pl_module.freeze_bn:
             return
         if epoch == self.from_epoch:
-            batches = _to(pl_module.device, repeated(trainer.datamodule.train_dataloader()))
-            used = estimate_batchnorm(pl_module.net, batches, self.batches)
+            used = estimate_batchnorm(pl_module.net, repeated(trainer.datamodule.train_dataloader()), self.batches)
             pl_module.hparams["freeze_bn_tail"] = {"from_epoch": self.from_epoch, "batches": used}
         # past the start (a resumed run) the checkpoint holds the statistics estimated then
         pl_module.freeze_bn = True
