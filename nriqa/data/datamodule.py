@@ -11,6 +11,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
 from nriqa.data.albedo import check_albedo_p
+from nriqa.data.coarse import check_coarse_p
 from nriqa.data.converged import check_converged_p
 from nriqa.data.cutmix import check_cutmix_p
 from nriqa.data.anchors import Anchors
@@ -88,6 +89,10 @@ class NRIQADataModule(L.LightningDataModule):
             display and jitter), noisy image, reference, twin and albedo pass alike, before the target
             (:mod:`nriqa.data.cutmix`); 0 (the default) draws none and leaves every other draw as it was. Not with
             ``ladder_pairs``.
+        coarse_p: the share of training patches that carry, in a random half-size square, a copy of their whole cut
+            at half the resolution (each pixel a 2 x 2 block's mean: four times the samples a pixel), noisy image,
+            reference, twin and albedo pass alike, right after the cut (:mod:`nriqa.data.coarse`); 0 (the default)
+            draws none and leaves every other draw as it was. Needs an even ``patch_size``.
         anchor_scenes: scene families whose training patches learn the starting network's map instead of
             their SSIM target (with ``init_from``: :class:`nriqa.training.module.NRIQAModule`'s teacher),
             so a fine-tune on a few scenes of them keeps what the start learnt from many while the other
@@ -130,6 +135,7 @@ class NRIQADataModule(L.LightningDataModule):
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         converged_p: float = 0.0,
         cutmix_p: float = 0.0,
+        coarse_p: float = 0.0,
         anchor_scenes: Sequence[str] = (),
         anchor_data: Sequence[str | os.PathLike] = (),
         ladder_pairs: bool = False,
@@ -164,6 +170,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, self.twins)
         self.cutmix_p = check_cutmix_p(cutmix_p, ladder_pairs)
+        self.coarse_p = check_coarse_p(coarse_p, patch_size)
         self.save_hyperparameters(logger=False)
         self.data_dir = data_dir
         self.val_scene = val_scene
@@ -225,6 +232,7 @@ class NRIQADataModule(L.LightningDataModule):
             ladder_span=self.ladder_span,
             converged_p=self.converged_p,
             cutmix_p=self.cutmix_p,
+            coarse_p=self.coarse_p,
         )
         if self.val_pairs:
             self.val_set = fixed_patches(

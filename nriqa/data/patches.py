@@ -18,6 +18,7 @@ from torch.utils.data import Dataset, Sampler, TensorDataset
 from nriqa.core.display import Display, DisplayMix, apply_display
 from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
+from nriqa.data.coarse import check_coarse_p, coarse_batch, sample_coarse
 from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
 from nriqa.data.cutmix import Box, check_cutmix_p, partner_generator, paste_batch, sample_box
 from nriqa.data.pixel_filter import (
@@ -99,14 +100,16 @@ class TrainPatches(Dataset):
     (with ``pixel_filter_p``) a pixel filter (:mod:`nriqa.data.pixel_filter`; never on images the manifest
     says were rendered through one), each applied to noisy image, twin and reference alike (with ``converged_p``
     the noisy image of a share of the items is the reference itself: :mod:`nriqa.data.converged`; with ``cutmix_p``
-    a share of the items get a rectangle of a partner item of their own, made alike: :mod:`nriqa.data.cutmix`), and
+    a share of the items get a rectangle of a partner item of their own, made alike: :mod:`nriqa.data.cutmix`; with
+    ``coarse_p`` a share carry a half-size copy of their cut at half the resolution, right after the cut:
+    :mod:`nriqa.data.coarse`), and
     the target is computed from the textured, filtered, displayed, jittered (pasted) pair. The texture and the filter act on the linear radiance, before the display (a tone-mapped pair:
     on its displayed values). With ``albedo_pass`` the scene's albedo pass is cut,
     textured and jittered alike, but not displayed: it stays a reflectance. ``input`` is the noisy patch
     ``(3,P,P)``, or with ``twins`` the noisy patch and its twin's ``(6,P,P)``, or with ``albedo_pass``
     the noisy patch and its albedo's ``(6,P,P)`` (both: ``(9,P,P)``). With ``anchors`` each item
     is ``(input, target, anchored)``, ``anchored`` true where the image is one of them (:mod:`nriqa.data.anchors`)
-    and the item is neither a converged nor a pasted one (a reference learns its own target, 1): the
+    and the item is neither a converged, a pasted nor a coarse one (these learn their own target): the
     training module then learns the starting network's map there instead of the target
     (:class:`nriqa.training.module.NRIQAModule`). With ``ladder_pairs`` every odd item ``k`` is item ``k - 1``'s
     cut, display, jitter, texture and filter taken from another rung of its ladder within ``ladder_span``
@@ -137,6 +140,7 @@ class TrainPatches(Dataset):
         ladder_span: int = 2,
         converged_p: float = 0.0,
         cutmix_p: float = 0.0,
+        coarse_p: float = 0.0,
     ) -> None:
         if not pairs:
             raise ValueError("TrainPatches needs at least one image pair")
@@ -160,6 +164,7 @@ class TrainPatches(Dataset):
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, twins)
+        self.coarse_p = check_coarse_p(coarse_p, patch_size)
         self.anchors = check_anchors(anchors, pairs, converged=self.converged_p > 0)
         self.cdf: Tensor | None = None
         self.ladder_pairs = bool(ladder_pairs)
@@ -236,7 +241,8 @@ class TrainPatches(Dataset):
         if pair.record.pixel_filter != "box":
             sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
         converged = sample_converged(g, self.converged_p)
-        return Draw(pair, y, x, display, jitter, albedo, sigma, image, converged)
+        coarse = sample_coarse(g, self.coarse_p, self.patch_size)  # drawn after: the rest as before
+        return Draw(pair, y, x, display, jitter, albedo, sigma, image, converged, coarse=coarse)
 
     def __getitem__(self, index: int) -> tuple[Tensor, ...]:
         return self.__getitems__([index])[0]
@@ -258,6 +264,7 @@ class TrainPatches(Dataset):
             for j in range(len(sources[0]))
         ]
         members = converged_batch([i for i, d in enumerate(draws) if d.converged], members)
+        members = coarse_batch({i: d.coarse for i, d in enumerate(draws) if d.coarse is not None}, members)
         members = albedo_batch(draws, members, self.albedo_lines)
         members = pixel_filter_batch(draws, members)
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
@@ -270,7 +277,8 @@ class TrainPatches(Dataset):
         inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
         if self.anchors:
             anchored = [
-                torch.tensor(self.anchors(d.pair.record) and not d.converged and d.cutmix is None) for d in draws
+                torch.tensor(self.anchors(d.pair.record) and not d.converged and d.cutmix is None and d.coarse is None)
+                for d in draws
             ]
             return [(inputs[i].contiguous(), target[i], anchored[i]) for i in range(len(draws))]
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
@@ -290,6 +298,7 @@ class Draw:
     image: int = -1  # the index of ``pair`` among the training images
     converged: bool = False  # the input is the reference itself (nriqa.data.converged)
     cutmix: Box | None = None  # the rectangle a partner item fills (nriqa.data.cutmix), or none
+    coarse: Box | None = None  # the square the item's own coarse copy fills (nriqa.data.coarse), or none
 
 
 def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
