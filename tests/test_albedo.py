@@ -6,7 +6,7 @@ import pytest
 import torch
 from test_batched_patches import MIX, make_dm
 
-from nriqa.data.albedo import LINE_DUTY, LOW_RANGE, check_albedo_p, grille, sample_albedo, texture
+from nriqa.data.albedo import LINE_DUTY, LINE_PERIOD, LOW_RANGE, check_albedo_p, grille, sample_albedo, texture
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import TONEMAP, item_generator
 from nriqa.data.targets import compute_target
@@ -141,3 +141,26 @@ def test_a_textured_batch_stays_finite_on_extreme_images(synthetic_dataset):
         p.noisy[:, -4:, -4:] = 0.0
     for x, y in ds.__getitems__(list(range(16))):
         assert bool(torch.isfinite(x).all()) and bool(torch.isfinite(y).all())
+
+
+def test_grilles_are_drawn_at_the_spacing_asked(synthetic_dataset):
+    assert all(torch.equal(grille(s, 24, LINE_PERIOD), grille(s, 24)) for s in range(10)), "the default as before"
+    fine = [grille(s, 64, (1.2, 2.0))[0] for s in range(20)]
+    coarse = [grille(s, 64, (8.0, 12.0))[0] for s in range(20)]
+
+    def high_share(t):  # the share of the texture's variance above half the Nyquist frequency
+        f = torch.fft.fftshift(torch.fft.fft2(t - t.mean()).abs() ** 2)
+        r = torch.hypot(*torch.meshgrid(torch.arange(-32, 32.0), torch.arange(-32, 32.0), indexing="ij"))
+        return float(f[r > 16].sum() / f.sum().clamp_min(1e-12))
+
+    assert min(map(high_share, fine)) > max(map(high_share, coarse)), "finer lines: more of the variance up high"
+    assert all(bool(torch.isfinite(t).all()) and float(t.std()) > 0 for t in fine)
+    kw = dict(jitter={"hsv": False, "geometric": False}, albedo_p=1.0, albedo_lines=1.0)
+    bare = make_dm(synthetic_dataset, jitter=kw["jitter"]).train_set
+    lined = make_dm(synthetic_dataset, albedo_line_period=[1.2, 2.0], **kw).train_set
+    for k in range(4):
+        (x0, _), (x1, _) = bare[k], lined[k]
+        assert torch.allclose(x1, x0 * grille(lined.draw(k).albedo, 32, (1.2, 2.0)), atol=1e-6), "items use it"
+    for bad in ([0.5, 2.0], [4.0, 3.0]):
+        with pytest.raises(ValueError, match=r"data.albedo_line_period=.*give 1 <= low <= high pixels"):
+            NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_line_period=bad)

@@ -20,17 +20,18 @@ BETA_RANGE = (1.0, 3.0)  # spectral slope: 1 fine grain ... 3 large smooth blobs
 LOW_RANGE = (0.05, 0.7)  # the texture's darkest albedo (its brightest is 1): strong to mild contrast
 TWO_TONE_P = 0.5  # share of textures cut into two tones (sharp edges, like tiles or thin geometry)
 TINT = 0.3  # each tone's channels vary by up to this factor (coloured textures)
-LINE_PERIOD = (3.0, 12.0)  # a grille's spacing between lines, in pixels
+LINE_PERIOD = (3.0, 12.0)  # a grille's spacing between lines, in pixels (the default of data.albedo_line_period)
 LINE_DUTY = (0.1, 0.4)  # the share of that spacing a line covers: hairlines ... bars
 CROSSED_P = 0.5  # share of grilles with a second set of lines across the first (a mesh)
 SUPERSAMPLE = 4  # a grille is box-filtered from this many samples a pixel side, as a renderer's pixel
 
 
-def texture(seed: int, size: int, lines: float = 0.0) -> Tensor:
+def texture(seed: int, size: int, lines: float = 0.0, period: tuple[float, float] = LINE_PERIOD) -> Tensor:
     """A ``(3, size, size)`` albedo in ``[low, 1]`` drawn from ``seed`` alone (float32, CPU).
 
-    With probability ``lines`` it is a grille of thin lines (:func:`grille`), else a noise texture; with
-    ``lines`` 0 (the default) no choice is drawn, so a seed gives the texture it gave before grilles existed.
+    With probability ``lines`` it is a grille of thin lines (:func:`grille`, its spacing uniform in ``period``
+    pixels), else a noise texture; with ``lines`` 0 (the default) no choice is drawn, so a seed gives the texture
+    it gave before grilles existed.
 
     Examples:
         >>> t = texture(7, 16)
@@ -39,7 +40,7 @@ def texture(seed: int, size: int, lines: float = 0.0) -> Tensor:
     """
     g = torch.Generator().manual_seed(int(seed))
     if lines > 0.0 and float(torch.rand(1, generator=g, dtype=torch.float64)) < lines:
-        return _grille(g, size)
+        return _grille(g, size, period)
     u = torch.rand(4, generator=g, dtype=torch.float64).tolist()
     beta = BETA_RANGE[0] + (BETA_RANGE[1] - BETA_RANGE[0]) * u[0]
     low = LOW_RANGE[0] + (LOW_RANGE[1] - LOW_RANGE[0]) * u[1]
@@ -56,10 +57,11 @@ def texture(seed: int, size: int, lines: float = 0.0) -> Tensor:
     return _tones(t, low, tints)
 
 
-def grille(seed: int, size: int) -> Tensor:
+def grille(seed: int, size: int, period: tuple[float, float] = LINE_PERIOD) -> Tensor:
     """A ``(3, size, size)`` albedo of thin dark lines on a bright ground: ``texture(seed, size, lines=1)``.
 
-    One set of parallel lines at a random angle, spacing (:data:`LINE_PERIOD`), width (:data:`LINE_DUTY`)
+    One set of parallel lines at a random angle, spacing (uniform in ``period`` pixels; at the pixel grid's limit,
+    2 pixels and below, a mesh shows as a moire, as a fine shadow lattice does), width (:data:`LINE_DUTY`)
     and phase, or two sets crossed (:data:`CROSSED_P`); box-filtered from :data:`SUPERSAMPLE` ² samples a
     pixel, so lines narrower than a pixel come out grey, as a rendered pixel shows them.
 
@@ -70,10 +72,18 @@ def grille(seed: int, size: int) -> Tensor:
     """
     g = torch.Generator().manual_seed(int(seed))
     torch.rand(1, generator=g, dtype=torch.float64)  # the choice of kind that texture() draws first
-    return _grille(g, size)
+    return _grille(g, size, period)
 
 
-def _grille(g: torch.Generator, size: int) -> Tensor:
+def check_line_period(period) -> tuple[float, float]:
+    """``(lo, hi)`` as floats if ``1 <= lo <= hi``; else a one-line ``ValueError`` naming ``data.albedo_line_period``."""
+    lo, hi = (float(v) for v in period)
+    if not 1.0 <= lo <= hi:
+        raise ValueError(f"data.albedo_line_period=[{lo}, {hi}]: give 1 <= low <= high pixels between a grille's lines")
+    return lo, hi
+
+
+def _grille(g: torch.Generator, size: int, period_range: tuple[float, float] = LINE_PERIOD) -> Tensor:
     u = torch.rand(2, generator=g, dtype=torch.float64).tolist()
     low = LOW_RANGE[0] + (LOW_RANGE[1] - LOW_RANGE[0]) * u[0]
     tints = 1.0 - TINT * torch.rand(2, 3, generator=g, dtype=torch.float64)
@@ -84,7 +94,7 @@ def _grille(g: torch.Generator, size: int) -> Tensor:
     for _ in range(2 if u[1] < CROSSED_P else 1):
         angle, period, duty, phase = torch.rand(4, generator=g, dtype=torch.float64).tolist()
         angle *= math.pi
-        period = LINE_PERIOD[0] + (LINE_PERIOD[1] - LINE_PERIOD[0]) * period
+        period = period_range[0] + (period_range[1] - period_range[0]) * period
         duty = LINE_DUTY[0] + (LINE_DUTY[1] - LINE_DUTY[0]) * duty
         s = (x * math.cos(angle) + y * math.sin(angle)) / period + phase
         covered |= (s - torch.floor(s)) < duty

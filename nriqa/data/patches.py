@@ -16,7 +16,7 @@ from torch import Tensor
 from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
-from nriqa.data.albedo import check_albedo_p, sample_albedo, texture
+from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
 from nriqa.data.coarse import check_coarse_p, coarse_batch, sample_coarse
 from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
@@ -133,6 +133,7 @@ class TrainPatches(Dataset):
         albedo_p: float = 0.0,
         albedo_pass: bool = False,
         albedo_lines: float = 0.0,
+        albedo_line_period: tuple[float, float] = LINE_PERIOD,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: tuple[float, float] = SIGMA_RANGE,
         anchors: Anchors = NO_ANCHORS,
@@ -162,6 +163,7 @@ class TrainPatches(Dataset):
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = albedo_pass
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
+        self.albedo_line_period = check_line_period(albedo_line_period)
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, twins)
         self.coarse_p = check_coarse_p(coarse_p, patch_size)
@@ -265,7 +267,7 @@ class TrainPatches(Dataset):
         ]
         members = converged_batch([i for i, d in enumerate(draws) if d.converged], members)
         members = coarse_batch({i: d.coarse for i, d in enumerate(draws) if d.coarse is not None}, members)
-        members = albedo_batch(draws, members, self.albedo_lines)
+        members = albedo_batch(draws, members, self.albedo_lines, self.albedo_line_period)
         members = pixel_filter_batch(draws, members)
         shown = len(members) - int(self.albedo_pass)  # the albedo pass is a reflectance: not displayed
         members = display_batch(draws, members[:shown]) + members[shown:]
@@ -301,10 +303,13 @@ class Draw:
     coarse: Box | None = None  # the square the item's own coarse copy fills (nriqa.data.coarse), or none
 
 
-def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -> list[Tensor]:
+def albedo_batch(
+    draws: list[Draw], members: list[Tensor], lines: float = 0.0, period: tuple[float, float] = LINE_PERIOD
+) -> list[Tensor]:
     """Each item of the ``(B, C, P, P)`` member stacks multiplied by its draw's albedo texture, the same for every member.
 
-    ``lines``: the share of those textures that are grilles of thin lines (:func:`nriqa.data.albedo.texture`).
+    ``lines``: the share of those textures that are grilles of thin lines, their spacing uniform in ``period``
+    pixels (:func:`nriqa.data.albedo.texture`).
     A render made through a Gaussian filter already gets its texture through the same filter (emulated), as
     the renderer would have drawn the texture; other renders get it as it is.
     """
@@ -312,16 +317,16 @@ def albedo_batch(draws: list[Draw], members: list[Tensor], lines: float = 0.0) -
     if not rows:
         return members
     size = members[0].shape[-1]
-    textures = torch.stack([rendered_texture(draws[i], size, lines) for i in rows]).to(members[0])
+    textures = torch.stack([rendered_texture(draws[i], size, lines, period) for i in rows]).to(members[0])
     out = [m.clone() for m in members]
     for o in out:
         o[rows] = o[rows] * textures
     return out
 
 
-def rendered_texture(draw: Draw, size: int, lines: float) -> Tensor:
+def rendered_texture(draw: Draw, size: int, lines: float, period: tuple[float, float] = LINE_PERIOD) -> Tensor:
     """Draw ``draw``'s ``(C, size, size)`` albedo texture, through its render's own filter where it has one."""
-    tex = texture(draw.albedo, size, lines)
+    tex = texture(draw.albedo, size, lines, period)
     sigma = rendered_sigma(draw.pair.record.pixel_filter)
     return tex if sigma is None else apply_pixel_filter(tex[None], sigma)[0]
 
