@@ -128,3 +128,19 @@ def tiny(tmp_path_factory) -> Path:
     proc = run_data_gen("preset=tiny", f"out={out}")
     assert proc.returncode == 0, proc.stderr[-2000:]
     return out
+
+
+@pytest.fixture
+def seen_pairs(monkeypatch) -> list:
+    """The ``(noisy, reference)`` batches training items' targets are computed from, in order (recorded only)."""
+    from nriqa.data import patches
+    from nriqa.data.targets import compute_target
+
+    seen = []
+
+    def recording(kind, noisy, ref):
+        seen.append((noisy.clone(), ref.clone()))
+        return compute_target(kind, noisy, ref)
+
+    monkeypatch.setattr(patches, "compute_target", recording)
+    return seen

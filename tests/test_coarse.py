@@ -1,6 +1,6 @@
 """Coarse pixels (data.coarse_p): a half-size copy of the item's own cut, each pixel a 2 x 2 block's mean, fills a
 half-size square of every member alike; the target is the SSIM map of the result; the other draws stay as they were;
-anchors; bad settings are one line."""
+bad settings are one line (anchors: test_cutmix)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,10 @@ import torch
 from test_batched_patches import MIX, draws_but, make_dm
 
 from nriqa.core.ssim import ssim_map
-from nriqa.data import patches
 from nriqa.data.coarse import coarse_batch, coarsen, sample_coarse
 from nriqa.data.cutmix import Box
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import item_generator
-from nriqa.data.targets import compute_target
 
 STILL = {"hsv": False, "geometric": False}  # no jitter: what the cut holds is what the target sees
 
@@ -69,14 +67,7 @@ def test_coarse_batch_fills_the_square_of_every_member_from_its_own_copy():
 
 
 @pytest.mark.parametrize("extra", [{"jitter": STILL}, {"display": MIX, "cutmix_p": 0.5, "albedo_p": 0.5}])
-def test_coarse_items_carry_their_copy_and_the_target_of_the_result(synthetic_dataset, monkeypatch, extra):
-    seen_pairs = []
-
-    def recording(kind, noisy, ref):
-        seen_pairs.append((noisy.clone(), ref.clone()))
-        return compute_target(kind, noisy, ref)
-
-    monkeypatch.setattr(patches, "compute_target", recording)
+def test_coarse_items_carry_their_copy_and_the_target_of_the_result(synthetic_dataset, seen_pairs, extra):
     plain = make_dm(synthetic_dataset, **extra).train_set
     coarse = make_dm(synthetic_dataset, coarse_p=0.5, **extra).train_set
     ks = list(range(40))
@@ -104,14 +95,3 @@ def test_coarse_items_carry_their_copy_and_the_target_of_the_result(synthetic_da
             assert torch.allclose(got[:, inside].view(3, box.h, box.w), coarsen(cut[None])[0])
         assert torch.equal(x1, noisy1), "the network sees the coarse image"
     assert 8 < seen < 32  # about half
-
-
-def test_coarse_anchored_items_learn_their_target(synthetic_dataset):
-    ds = make_dm(synthetic_dataset, anchor_scenes=["alpha"], coarse_p=0.5).train_set
-    ks = list(range(48))
-    flags = []
-    for k, (_, _, flag) in zip(ks, ds.__getitems__(ks)):
-        d = ds.draw(k)
-        assert bool(flag) == (d.pair.record.scene == "alpha" and d.coarse is None)
-        flags.append(d.coarse is not None and d.pair.record.scene == "alpha")
-    assert any(flags), "some anchored image was coarsened (and learns its target)"

@@ -8,11 +8,9 @@ import torch
 from test_batched_patches import MIX, draws_but, make_dm
 
 from nriqa.core.ssim import ssim_map
-from nriqa.data import patches
 from nriqa.data.cutmix import Box, partner_generator, paste_batch, sample_box
 from nriqa.data.datamodule import NRIQADataModule
 from nriqa.data.patches import item_generator
-from nriqa.data.targets import compute_target
 
 
 def test_no_pasting_draws_nothing_and_boxes_lie_inside_the_patch(synthetic_dataset):
@@ -38,14 +36,7 @@ def test_bad_settings_are_one_line(synthetic_dataset):
 
 
 @pytest.mark.parametrize("extra", [{}, {"display": MIX, "albedo_p": 0.5, "pixel_filter_p": 0.5, "converged_p": 0.3}])
-def test_pasted_items_carry_their_partner_and_the_target_of_the_pasted_pair(synthetic_dataset, monkeypatch, extra):
-    seen_pairs = []
-
-    def recording(kind, noisy, ref):
-        seen_pairs.append((noisy.clone(), ref.clone()))
-        return compute_target(kind, noisy, ref)
-
-    monkeypatch.setattr(patches, "compute_target", recording)
+def test_pasted_items_carry_their_partner_and_the_target_of_the_pasted_pair(synthetic_dataset, seen_pairs, extra):
 
     def made(ds, k, draw=None):
         """Item k's input, target and the displayed (noisy, reference) its target came from."""
@@ -96,12 +87,13 @@ def test_paste_batch_fills_the_box_of_every_member_from_the_partner():
     assert torch.isfinite(target).all() and target.shape == (1, 1, 32, 32)
 
 
-def test_pasted_anchored_items_learn_their_target(synthetic_dataset):
-    ds = make_dm(synthetic_dataset, anchor_scenes=["alpha"], cutmix_p=0.5).train_set
+@pytest.mark.parametrize("share, field", [("cutmix_p", "cutmix"), ("coarse_p", "coarse")])
+def test_pasted_or_coarse_anchored_items_learn_their_target(synthetic_dataset, share, field):
+    ds = make_dm(synthetic_dataset, anchor_scenes=["alpha"], **{share: 0.5}).train_set
     ks = list(range(48))
     flags = []
     for k, (_, _, flag) in zip(ks, ds.__getitems__(ks)):
         d = ds.draw(k)
-        assert bool(flag) == (d.pair.record.scene == "alpha" and d.cutmix is None)
-        flags.append(d.cutmix is not None and d.pair.record.scene == "alpha")
-    assert any(flags), "some anchored image was pasted (and learns its target)"
+        assert bool(flag) == (d.pair.record.scene == "alpha" and getattr(d, field) is None)
+        flags.append(getattr(d, field) is not None and d.pair.record.scene == "alpha")
+    assert any(flags), "some anchored image was pasted or coarsened (and learns its target)"
