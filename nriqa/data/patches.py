@@ -279,8 +279,7 @@ class TrainPatches(Dataset):
         inputs = network_input(noisy, members[2] if self.twins else None, members[-1] if self.albedo_pass else None)
         if self.anchors:
             anchored = [
-                torch.tensor(self.anchors(d.pair.record) and not d.converged and d.cutmix is None and d.coarse is None)
-                for d in draws
+                torch.tensor(self.anchors(d.pair.record) and not d.learns_own_target) for d in draws
             ]
             return [(inputs[i].contiguous(), target[i], anchored[i]) for i in range(len(draws))]
         return [(inputs[i].contiguous(), target[i]) for i in range(len(draws))]
@@ -301,6 +300,11 @@ class Draw:
     converged: bool = False  # the input is the reference itself (nriqa.data.converged)
     cutmix: Box | None = None  # the rectangle a partner item fills (nriqa.data.cutmix), or none
     coarse: Box | None = None  # the square the item's own coarse copy fills (nriqa.data.coarse), or none
+
+    @property
+    def learns_own_target(self) -> bool:
+        """True for a converged, pasted or coarse item: made to teach its own target, never anchored."""
+        return self.converged or self.cutmix is not None or self.coarse is not None
 
 
 def albedo_batch(
