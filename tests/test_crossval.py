@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import csv
+import importlib
 import json
 import math
+import os
+import signal
 
+import lightning as L
 import pytest
+import torch
 from hydra import compose, initialize_config_dir
 
 from nriqa.configs import CONFIG_DIR
@@ -55,6 +60,51 @@ def test_crossval_runs_every_fold_and_resumes(synthetic_dataset, tmp_path, capsy
     assert (tmp_path / "folds" / "alpha" / RESULT_NAME).stat().st_mtime_ns == stamp
     assert (tmp_path / "folds.csv").read_text() == table
     assert json.loads((tmp_path / "folds" / "beta" / RESULT_NAME).read_text())["val"] == again[1]["val"]
+
+
+class SigtermAt(L.Callback):
+    """Sends this process SIGTERM at the end of the first batch of epoch ``epoch``, as a scheduler's kill would."""
+
+    def __init__(self, epoch: int) -> None:
+        self.epoch = epoch
+
+    def on_train_batch_end(self, trainer, *args) -> None:
+        if trainer.current_epoch == self.epoch and not trainer.received_sigterm:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+
+class EpochsSeen(L.Callback):
+    """Records the epochs a fit trains (class-wide: Hydra builds the instance)."""
+
+    seen: list[int] = []
+
+    def on_train_epoch_start(self, trainer, *args) -> None:
+        EpochsSeen.seen.append(trainer.current_epoch)
+
+
+def test_a_fold_stopped_by_sigterm_exits_non_zero_unscored_and_resumes(synthetic_dataset, tmp_path, capsys):
+    main = importlib.import_module("nriqa.cli.crossval").main.__wrapped__  # without Hydra's command-line runner
+    overrides = [f"paths.data_dir={synthetic_dataset}", f"crossval.out_dir={tmp_path}", "experiment=fcnn_fast", *TINY]
+    overrides += ["+model.net.width=8", "crossval.scenes=[alpha]", "trainer.max_epochs=2"]
+    killed = overrides + ["+callbacks.sigterm._target_=test_crossval.SigtermAt", "+callbacks.sigterm.epoch=1"]
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        cfg_killed = compose("crossval", overrides=killed)
+    fold = tmp_path / "folds" / "alpha"
+    with pytest.raises(SystemExit) as info:
+        main(cfg_killed)
+    # Lightning ends a SIGTERM'd fit with a SystemExit of no status (0: "finished"); the CLI exits 143, one line
+    assert info.value.code == 128 + signal.SIGTERM
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: stopped by SIGTERM") and "rerun" in err[0]
+    assert not (fold / RESULT_NAME).exists() and not (tmp_path / "folds.csv").exists()
+    assert torch.load(fold / "checkpoints" / "last.ckpt", weights_only=False)["epoch"] == 0  # epoch 0 kept whole
+
+    # the same command again resumes from there (it trains epoch 1 only) and finishes the fold
+    EpochsSeen.seen.clear()
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        cfg = compose("crossval", overrides=overrides + ["+callbacks.seen._target_=test_crossval.EpochsSeen"])
+    (result,) = crossval(cfg)
+    assert EpochsSeen.seen == [1] and result["epochs"] == 2 and (fold / RESULT_NAME).is_file()
 
 
 def test_crossval_folds_stay_within_data_scenes(synthetic_dataset, tmp_path):

@@ -7,12 +7,14 @@ Kept in the package so that cross validation (:mod:`nriqa.training.crossval`) an
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
 import hydra
 import lightning as L
+from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from nriqa.losses.ladder import check_ladder_weight
@@ -56,10 +58,26 @@ def user_error(exc: BaseException) -> str | None:
     return None
 
 
+SIGTERM_EXIT = 128 + signal.SIGTERM  # the status a shell gives a process that SIGTERM ended
+STOPPED_BY_SIGTERM = (
+    "error: stopped by SIGTERM before training finished (the run in progress is not marked done); its "
+    "checkpoints/last.ckpt holds the last whole epoch: rerun the same command to resume "
+    "(nriqa-train: add ckpt_path=<run dir>/checkpoints/last.ckpt)"
+)
+
+
 def exit_on_user_error(fn, *args):
-    """Return ``fn(*args)``; an error :func:`user_error` recognises exits with its one line instead."""
+    """Return ``fn(*args)``; an error :func:`user_error` recognises exits with its one line instead.
+
+    A SIGTERM during training (a scheduler's time limit, ``kill``) exits with status 143 and one line:
+    Lightning turns it into ``SIGTERMException``, a ``SystemExit`` without a status, which would end the
+    process with status 0 as if the run had finished.
+    """
     try:
         return fn(*args)
+    except SIGTERMException:
+        print(STOPPED_BY_SIGTERM, file=sys.stderr)
+        raise SystemExit(SIGTERM_EXIT) from None
     except Exception as exc:
         message = user_error(exc)
         if message is None:
