@@ -20,6 +20,7 @@ from nriqa.data.datamodule import NRIQADataModule
 from nriqa.eval.fold_eval import image_level, true_image_score
 from nriqa.models import create_model
 from nriqa.training.crossval import RESULT_NAME, crossval
+from nriqa.training.fit import StoppedBySigterm
 from nriqa.training.stability import stability
 
 TINY = [
@@ -90,9 +91,15 @@ def test_a_fold_stopped_by_sigterm_exits_non_zero_unscored_and_resumes(synthetic
     with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
         cfg_killed = compose("crossval", overrides=killed)
     fold = tmp_path / "folds" / "alpha"
+    # called as a library: Lightning's SystemExit of no status (0: "finished") comes out with status 143
+    with pytest.raises(StoppedBySigterm) as info:
+        crossval(cfg_killed)
+    assert info.value.code == 128 + signal.SIGTERM and not (fold / RESULT_NAME).exists()
+    capsys.readouterr()
+    # and from the command line (it resumes epoch 1, and is stopped there again)
     with pytest.raises(SystemExit) as info:
         main(cfg_killed)
-    # Lightning ends a SIGTERM'd fit with a SystemExit of no status (0: "finished"); the CLI exits 143, one line
+    # the CLI exits 143 with one line
     assert info.value.code == 128 + signal.SIGTERM
     # one error line (Lightning's own log lines, and in a full run other tests' stray log output, may surround it)
     errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]

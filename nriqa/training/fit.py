@@ -66,12 +66,22 @@ STOPPED_BY_SIGTERM = (
 )
 
 
+class StoppedBySigterm(SIGTERMException):
+    """A fit that SIGTERM stopped, as :func:`train` raises it: Lightning's ``SIGTERMException`` with status 143.
+
+    Lightning's own exception is a ``SystemExit`` of no status, so a script that calls :func:`train` (or
+    :func:`nriqa.training.crossval.crossval`) and lets it through would end with status 0, as if finished.
+    """
+
+    def __init__(self) -> None:
+        super().__init__(SIGTERM_EXIT)
+
+
 def exit_on_user_error(fn, *args):
     """Return ``fn(*args)``; an error :func:`user_error` recognises exits with its one line instead.
 
-    A SIGTERM during training (a scheduler's time limit, ``kill``) exits with status 143 and one line:
-    Lightning turns it into ``SIGTERMException``, a ``SystemExit`` without a status, which would end the
-    process with status 0 as if the run had finished.
+    A SIGTERM during training (a scheduler's time limit, ``kill``) exits with status 143 and one line
+    (:class:`StoppedBySigterm`).
     """
     try:
         return fn(*args)
@@ -123,6 +133,10 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     Returns:
         ``(metrics, objects)``: the last epoch's logged metrics as floats, and
         ``{"cfg", "datamodule", "model", "trainer", "best_ckpt", "seconds"}``.
+
+    Raises:
+        StoppedBySigterm: SIGTERM arrived during the fit (status 143 if not caught); ``last.ckpt`` holds the
+            last whole epoch, and calling again with the same ``cfg`` (``ckpt_path`` set to it) resumes.
     """
     if cfg.get("seed") is not None:
         L.seed_everything(cfg.seed, workers=True)
@@ -186,7 +200,10 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         lg.log_hyperparams(OmegaConf.to_container(cfg, resolve=True))
 
     start = time.perf_counter()
-    trainer.fit(model=model, datamodule=datamodule, ckpt_path=cfg.get("ckpt_path"))
+    try:
+        trainer.fit(model=model, datamodule=datamodule, ckpt_path=cfg.get("ckpt_path"))
+    except SIGTERMException:
+        raise StoppedBySigterm() from None
     seconds = time.perf_counter() - start
 
     metrics = {k: float(v) for k, v in trainer.callback_metrics.items()}
