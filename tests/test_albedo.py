@@ -164,3 +164,22 @@ def test_grilles_are_drawn_at_the_spacing_asked(synthetic_dataset):
     for bad in ([0.5, 2.0], [4.0, 3.0]):
         with pytest.raises(ValueError, match=r"data.albedo_line_period=.*give 1 <= low <= high pixels"):
             NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_line_period=bad)
+
+
+def test_albedo_min_spp_keeps_textures_off_the_noisier_images(synthetic_dataset):
+    everywhere = make_dm(synthetic_dataset, albedo_p=1.0).train_set
+    gated = make_dm(synthetic_dataset, albedo_p=1.0, albedo_min_spp=16).train_set
+    spps = set()
+    for k in range(64):
+        a, b = everywhere.draw(k), gated.draw(k)
+        assert (a.pair.record, a.y, a.x, a.display, a.jitter) == (b.pair.record, b.y, b.x, b.display, b.jitter)
+        spp = b.pair.record.spp
+        spps.add(spp)
+        assert b.albedo == (a.albedo if spp >= 16 else None), f"spp {spp}"
+    assert spps == {1, 4, 16, 64}, "both sides of the gate were drawn"
+    x_plain = make_dm(synthetic_dataset).train_set
+    low = next(k for k in range(64) if gated.draw(k).pair.record.spp < 16)
+    assert torch.equal(gated[low][0], x_plain[low][0]), "a gated-out image's item is the untextured one"
+    for bad in (-1, 2.5, "many", float("nan")):
+        with pytest.raises(ValueError, match=r"data.albedo_min_spp=.*give a whole number of samples per pixel >= 0"):
+            NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_min_spp=bad)

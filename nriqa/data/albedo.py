@@ -75,6 +75,17 @@ def grille(seed: int, size: int, period: tuple[float, float] = LINE_PERIOD) -> T
     return _grille(g, size, period)
 
 
+def check_min_spp(spp) -> int:
+    """``spp`` as an int if it is a whole number >= 0; else a one-line ``ValueError`` naming ``data.albedo_min_spp``."""
+    try:
+        value = float(spp)
+    except (TypeError, ValueError):
+        value = -1.0
+    if isinstance(spp, bool) or not value.is_integer() or value < 0:
+        raise ValueError(f"data.albedo_min_spp={spp}: give a whole number of samples per pixel >= 0 (0: every image)")
+    return int(value)
+
+
 def check_line_period(period) -> tuple[float, float]:
     """``(lo, hi)`` as floats if ``1 <= lo <= hi``; else a one-line ``ValueError`` naming ``data.albedo_line_period``."""
     lo, hi = (float(v) for v in period)

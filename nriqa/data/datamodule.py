@@ -10,7 +10,7 @@ import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
-from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period
+from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, check_min_spp
 from nriqa.data.coarse import check_coarse_p
 from nriqa.data.converged import check_converged_p
 from nriqa.data.cutmix import check_cutmix_p
@@ -76,6 +76,9 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_line_period: ``[low, high]``, the spacing of a grille's lines uniform in it, in pixels; ``[3, 12]``
             (the default) as before; down to 1-2 pixels a crossed grille shows as a moire, as a shadow lattice finer
             than the pixel grid does.
+        albedo_min_spp: only images of at least this many samples per pixel get albedo textures (the draw is
+            made all the same, so the other images' draws stay as they were); 0 (the default): every image. A
+            texture on an image noisier than its contrast teaches that noise may be texture.
         albedo_pass: also feed the model each scene variant's albedo pass (``albedo.exr`` beside the
             reference, ``python -m data_gen.albedo_pass DATA``), stacked after the image (and twin):
             cut, textured and jittered with the image, never displayed.
@@ -135,6 +138,7 @@ class NRIQADataModule(L.LightningDataModule):
         albedo_pass: bool = False,
         albedo_lines: float = 0.0,
         albedo_line_period: Sequence[float] = LINE_PERIOD,
+        albedo_min_spp: int = 0,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: Sequence[float] = SIGMA_RANGE,
         converged_p: float = 0.0,
@@ -172,6 +176,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         albedo_line_period = [float(v) for v in albedo_line_period]  # a plain list in the checkpoint
         self.albedo_line_period = check_line_period(albedo_line_period)
+        self.albedo_min_spp = check_min_spp(albedo_min_spp)
         pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, self.twins)
@@ -232,6 +237,7 @@ class NRIQADataModule(L.LightningDataModule):
             albedo_pass=self.albedo_pass,
             albedo_lines=self.albedo_lines,
             albedo_line_period=self.albedo_line_period,
+            albedo_min_spp=self.albedo_min_spp,
             pixel_filter_p=self.pixel_filter_p,
             pixel_filter_sigma=self.pixel_filter_sigma,
             anchors=self.anchors,

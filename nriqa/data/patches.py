@@ -16,7 +16,7 @@ from torch import Tensor
 from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
-from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, sample_albedo, texture
+from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, check_min_spp, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
 from nriqa.data.coarse import check_coarse_p, coarse_batch, sample_coarse
 from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
@@ -134,6 +134,7 @@ class TrainPatches(Dataset):
         albedo_pass: bool = False,
         albedo_lines: float = 0.0,
         albedo_line_period: tuple[float, float] = LINE_PERIOD,
+        albedo_min_spp: int = 0,
         pixel_filter_p: float = 0.0,
         pixel_filter_sigma: tuple[float, float] = SIGMA_RANGE,
         anchors: Anchors = NO_ANCHORS,
@@ -164,6 +165,7 @@ class TrainPatches(Dataset):
         self.albedo_pass = albedo_pass
         self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
         self.albedo_line_period = check_line_period(albedo_line_period)
+        self.albedo_min_spp = check_min_spp(albedo_min_spp)
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
         self.converged_p = check_converged_p(converged_p, twins)
         self.coarse_p = check_coarse_p(coarse_p, patch_size)
@@ -239,6 +241,8 @@ class TrainPatches(Dataset):
             else None
         )
         albedo = sample_albedo(g, self.albedo_p)
+        if pair.record.spp < self.albedo_min_spp:
+            albedo = None  # too few samples for a texture (drawn all the same: the other draws stay as they were)
         sigma = sample_pixel_filter(g, self.pixel_filter_p, self.pixel_filter_sigma)  # drawn after: the rest as before
         if pair.record.pixel_filter != "box":
             sigma = None  # rendered through a filter already (drawn all the same: the other images' draws stay)
