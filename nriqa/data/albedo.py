@@ -16,6 +16,8 @@ import math
 import torch
 from torch import Tensor
 
+from nriqa.data.options import check_share, check_whole
+
 BETA_RANGE = (1.0, 3.0)  # spectral slope: 1 fine grain ... 3 large smooth blobs
 LOW_RANGE = (0.05, 0.7)  # the texture's darkest albedo (its brightest is 1): strong to mild contrast
 TWO_TONE_P = 0.5  # share of textures cut into two tones (sharp edges, like tiles or thin geometry)
@@ -77,13 +79,7 @@ def grille(seed: int, size: int, period: tuple[float, float] = LINE_PERIOD) -> T
 
 def check_min_spp(spp) -> int:
     """``spp`` as an int if it is a whole number >= 0; else a one-line ``ValueError`` naming ``data.albedo_min_spp``."""
-    try:
-        value = float(spp)
-    except (TypeError, ValueError):
-        value = -1.0
-    if isinstance(spp, bool) or not value.is_integer() or value < 0:
-        raise ValueError(f"data.albedo_min_spp={spp}: give a whole number of samples per pixel >= 0 (0: every image)")
-    return int(value)
+    return check_whole(spp, "albedo_min_spp", 0, "samples per pixel", " (0: every image)")
 
 
 def check_line_period(period) -> tuple[float, float]:
@@ -132,9 +128,11 @@ def sample_albedo(generator: torch.Generator, p: float) -> int | None:
     return int(seed) if float(u) < p else None
 
 
-def check_albedo_p(p: float, name: str = "albedo_p", what: str = "the albedo textures") -> float:
-    """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.<name>`` and ``what`` 0 switches off."""
-    p = float(p)
-    if not 0.0 <= p <= 1.0:
-        raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
-    return p
+def check_albedo_p(p: float) -> float:
+    """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.albedo_p``."""
+    return check_share(p, "albedo_p", "the albedo textures")
+
+
+def check_albedo_lines(p: float) -> float:
+    """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.albedo_lines``."""
+    return check_share(p, "albedo_lines", "the grilles")

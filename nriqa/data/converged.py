@@ -11,13 +11,13 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from nriqa.data.albedo import check_albedo_p
+from nriqa.data.options import check_share
 
 
 def check_converged_p(p: float, twins: bool = False) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.converged_p`` (also where ``p`` > 0 for
     a two-buffer model: a reference is no independent twin of itself)."""
-    p = check_albedo_p(p, "converged_p", "it")  # the data module's one share check
+    p = check_share(p, "converged_p", "it")
     if p and twins:
         raise ValueError("data.converged_p needs a single-image model: a reference is no independent twin of itself")
     return p

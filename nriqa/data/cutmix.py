@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from nriqa.data.albedo import check_albedo_p
+from nriqa.data.options import check_share
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Box:
 def check_cutmix_p(p: float, ladder_pairs: bool = False) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.cutmix_p`` (also where ``p`` > 0 with
     ladder pairs: an odd item is its even item's cut on another rung, which a partner's rectangle would not follow)."""
-    p = check_albedo_p(p, "cutmix_p", "pasting")  # the data module's one share check
+    p = check_share(p, "cutmix_p", "pasting")
     if p and ladder_pairs:
         raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
     return p

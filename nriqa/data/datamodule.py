@@ -10,7 +10,7 @@ import lightning as L
 from torch.utils.data import DataLoader, TensorDataset
 
 from nriqa.core.display import DisplayMix
-from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, check_min_spp
+from nriqa.data.albedo import LINE_PERIOD, check_albedo_lines, check_albedo_p, check_line_period, check_min_spp
 from nriqa.data.coarse import check_coarse_p
 from nriqa.data.converged import check_converged_p
 from nriqa.data.cutmix import check_cutmix_p
@@ -173,7 +173,7 @@ class NRIQADataModule(L.LightningDataModule):
         self.twins = bool(twins)
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = bool(albedo_pass)
-        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
+        self.albedo_lines = check_albedo_lines(albedo_lines)
         albedo_line_period = [float(v) for v in albedo_line_period]  # a plain list in the checkpoint
         self.albedo_line_period = check_line_period(albedo_line_period)
         self.albedo_min_spp = check_min_spp(albedo_min_spp)

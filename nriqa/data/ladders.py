@@ -25,6 +25,7 @@ from collections.abc import Sequence
 
 import torch
 
+from nriqa.data.options import check_whole
 from nriqa.io.manifest import Record
 
 __all__ = ["check_span", "ladder_key", "ladder_partners", "pick_partner"]
@@ -36,10 +37,8 @@ def ladder_key(record: Record) -> tuple:
 
 
 def check_span(span: int) -> int:
-    """``span`` as an int; below 1 a one-line ``ValueError``."""
-    if int(span) != span or int(span) < 1:
-        raise ValueError(f"data.ladder_span must be a whole number of doublings >= 1, got {span}")
-    return int(span)
+    """``span`` as an int if it is a whole number >= 1; else a one-line ``ValueError`` naming ``data.ladder_span``."""
+    return check_whole(span, "ladder_span", 1, "doublings")
 
 
 def ladder_partners(records: Sequence[Record], span: int = 2) -> list[list[int]]:

@@ -16,7 +16,7 @@ from torch import Tensor
 from torch.utils.data import Dataset, Sampler, TensorDataset
 
 from nriqa.core.display import Display, DisplayMix, apply_display
-from nriqa.data.albedo import LINE_PERIOD, check_albedo_p, check_line_period, check_min_spp, sample_albedo, texture
+from nriqa.data.albedo import LINE_PERIOD, check_albedo_lines, check_albedo_p, check_line_period, check_min_spp, sample_albedo, texture
 from nriqa.data.anchors import NO_ANCHORS, Anchors, check_anchors
 from nriqa.data.coarse import check_coarse_p, coarse_batch, sample_coarse
 from nriqa.data.converged import check_converged_p, converged_batch, sample_converged
@@ -163,7 +163,7 @@ class TrainPatches(Dataset):
         self.twins = twins
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = albedo_pass
-        self.albedo_lines = check_albedo_p(albedo_lines, "albedo_lines", "the grilles")
+        self.albedo_lines = check_albedo_lines(albedo_lines)
         self.albedo_line_period = check_line_period(albedo_line_period)
         self.albedo_min_spp = check_min_spp(albedo_min_spp)
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)

@@ -22,6 +22,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
+from nriqa.data.options import check_share
+
 SIGMA_RANGE = (0.3, 0.8)  # standard deviations in pixels: Mitsuba's 0.5 inside, narrower and wider about it
 TRUNCATE = 4.0  # Mitsuba's gaussian filter ends at 4 standard deviations
 _SUBSAMPLES = 64  # points per pixel integrating the filter's weight
@@ -93,9 +95,8 @@ def sample_pixel_filter(
 
 def check_pixel_filter(p: float, sigma_range) -> tuple[float, tuple[float, float]]:
     """``(p, (lo, hi))`` if ``p`` is a share and ``0 < lo <= hi <= 4``; else a one-line ``ValueError``."""
-    if not 0.0 <= float(p) <= 1.0:
-        raise ValueError(f"pixel_filter_p={p}: the share of patches through a pixel filter must be in [0, 1]")
+    p = check_share(p, "pixel_filter_p", "the pixel filter")
     lo, hi = (float(v) for v in sigma_range)
     if not 0.0 < lo <= hi <= 4.0:
         raise ValueError(f"pixel_filter_sigma=[{lo}, {hi}]: give 0 < low <= high <= 4 pixels")
-    return float(p), (lo, hi)
+    return p, (lo, hi)

@@ -1,0 +1,49 @@
+"""Checks of the ``data.*`` training options: a share (a probability) and a whole number with a lower bound.
+
+Every data option is checked twice, where :class:`nriqa.data.datamodule.NRIQADataModule` reads it (at config
+time, before anything is loaded) and where :class:`nriqa.data.patches.TrainPatches` takes it (for the class
+used alone). Both call these, so a bad value gets the same one line wherever it is caught, naming its key, what
+was given and what to give: a ``ValueError`` that the command-line tools print as one line and exit non-zero.
+
+    >>> check_share(0.25, "cutmix_p", "pasting")
+    0.25
+    >>> check_whole(16.0, "albedo_min_spp", 0, "samples per pixel")
+    16
+    >>> check_whole("many", "ladder_span", 1, "doublings")
+    Traceback (most recent call last):
+    ...
+    ValueError: data.ladder_span=many: give a whole number of doublings >= 1
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["check_share", "check_whole"]
+
+
+def _number(value) -> float:
+    """``value`` as a float; NaN where it is a boolean or not a number at all (so every range test fails)."""
+    if isinstance(value, bool):
+        return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def check_share(p, name: str, what: str) -> float:
+    """``p`` as a float in [0, 1]; else a one-line ``ValueError`` naming ``data.<name>`` and ``what`` 0 switches off."""
+    value = _number(p)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
+    return value
+
+
+def check_whole(value, name: str, low: int, unit: str, note: str = "") -> int:
+    """``value`` as an int if it is a whole number >= ``low``; else a one-line ``ValueError`` naming ``data.<name>``,
+    the ``unit`` it counts and ``note`` (e.g. what its lowest value means)."""
+    number = _number(value)
+    if not (number.is_integer() and number >= low):
+        raise ValueError(f"data.{name}={value}: give a whole number of {unit} >= {low}{note}")
+    return int(number)
