@@ -1,6 +1,6 @@
 """Checks of the ``data.*`` training options: a share (a probability) and a whole number with a lower bound.
 
-Every data option is checked twice, where :class:`nriqa.data.datamodule.NRIQADataModule` reads it (at config
+A checked data option is checked twice, where :class:`nriqa.data.datamodule.NRIQADataModule` reads it (at config
 time, before anything is loaded) and where :class:`nriqa.data.patches.TrainPatches` takes it (for the class
 used alone). Both call these, so a bad value gets the same one line wherever it is caught, naming its key, what
 was given and what to give: a ``ValueError`` that the command-line tools print as one line and exit non-zero.
