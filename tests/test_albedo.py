@@ -161,8 +161,10 @@ def test_grilles_are_drawn_at_the_spacing_asked(synthetic_dataset):
     for k in range(4):
         (x0, _), (x1, _) = bare[k], lined[k]
         assert torch.allclose(x1, x0 * grille(lined.draw(k).albedo, 32, (1.2, 2.0)), atol=1e-6), "items use it"
-    for bad in ([0.5, 2.0], [4.0, 3.0]):
-        with pytest.raises(ValueError, match=r"data.albedo_line_period=.*give 1 <= low <= high pixels"):
+    for bad in ([0.5, 2.0], [4.0, 3.0], 3, [1.5, 2.0, 3.0]):
+        with pytest.raises(
+            ValueError, match=r"^data.albedo_line_period=.*: give \[low, high\] with 1 <= low <= high pixels"
+        ):
             NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_line_period=bad)
 
 

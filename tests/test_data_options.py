@@ -5,7 +5,7 @@ import math
 import pytest
 
 from nriqa.data.datamodule import NRIQADataModule
-from nriqa.data.options import check_share, check_whole
+from nriqa.data.options import check_range, check_share, check_whole
 
 
 @pytest.mark.parametrize("bad", [-1, 2.5, "many", math.nan, math.inf, True, None, [1]])
@@ -35,3 +35,29 @@ def test_a_share_comes_back_as_a_float(good):
 def test_the_data_module_names_a_bad_ladder_span(bad, synthetic_dataset):
     with pytest.raises(ValueError, match=r"^data.ladder_span=.*: give a whole number of doublings >= 1$"):
         NRIQADataModule(synthetic_dataset, val_scene="beta", ladder_span=bad)
+
+
+@pytest.mark.parametrize(
+    "bad", [[0, 0.5], [0.8, 0.3], [0.3, 4.5], [0.3, math.nan], [True, 2], 0.5, "ab", None, [0.3], [0.1, 0.2, 0.3]]
+)
+def test_a_range_check_gives_one_line_naming_its_key(bad):
+    pattern = r"^data.pixel_filter_sigma=.*: give \[low, high\] with 0 < low <= high <= 4 pixels$"
+    with pytest.raises(ValueError, match=pattern):
+        check_range(bad, "pixel_filter_sigma", "pixels", 0, 4, low_open=True)
+
+
+@pytest.mark.parametrize(
+    ("given", "expected"), [([1, 1], (1.0, 1.0)), ((1.2, "2"), (1.2, 2.0)), ([3, 1e9], (3.0, 1e9))]
+)
+def test_a_range_comes_back_as_two_floats_and_a_closed_low_bound_admits_itself(given, expected):
+    assert check_range(given, "albedo_line_period", "pixels", 1) == expected
+    with pytest.raises(ValueError, match=r"^data.albedo_line_period=\[0.5, 2\]: give \[low, high\] with 1 <= low"):
+        check_range([0.5, 2], "albedo_line_period", "pixels", 1)
+
+
+@pytest.mark.parametrize("bad", [3, "ab", [2.0, 1.0]])
+def test_the_data_module_names_a_bad_line_period_or_filter_range(bad, synthetic_dataset):
+    with pytest.raises(ValueError, match=r"^data.albedo_line_period=.*: give \[low, high\]"):
+        NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_line_period=bad)
+    with pytest.raises(ValueError, match=r"^data.pixel_filter_sigma=.*: give \[low, high\]"):
+        NRIQADataModule(synthetic_dataset, val_scene="beta", pixel_filter_sigma=bad)

@@ -54,7 +54,9 @@ def test_no_pixel_filter_draws_nothing_and_bad_settings_are_one_line(synthetic_d
     assert 0.3 <= sample_pixel_filter(item_generator(1, 2), 1.0) <= 0.8
     with pytest.raises(ValueError, match=r"data.pixel_filter_p=1.5 is not a probability"):
         NRIQADataModule(synthetic_dataset, val_scene="beta", pixel_filter_p=1.5)
-    with pytest.raises(ValueError, match=r"pixel_filter_sigma=\[0.8, 0.3\]: give 0 < low <= high <= 4"):
+    with pytest.raises(
+        ValueError, match=r"^data.pixel_filter_sigma=\[0.8, 0.3\]: give \[low, high\] with 0 < low <= high <= 4 pixels"
+    ):
         NRIQADataModule(synthetic_dataset, val_scene="beta", pixel_filter_p=0.5, pixel_filter_sigma=[0.8, 0.3])
 
 

@@ -16,7 +16,7 @@ import math
 import torch
 from torch import Tensor
 
-from nriqa.data.options import check_share, check_whole
+from nriqa.data.options import check_range, check_share, check_whole
 
 BETA_RANGE = (1.0, 3.0)  # spectral slope: 1 fine grain ... 3 large smooth blobs
 LOW_RANGE = (0.05, 0.7)  # the texture's darkest albedo (its brightest is 1): strong to mild contrast
@@ -84,10 +84,7 @@ def check_min_spp(spp) -> int:
 
 def check_line_period(period) -> tuple[float, float]:
     """``(lo, hi)`` as floats if ``1 <= lo <= hi``; else a one-line ``ValueError`` naming ``data.albedo_line_period``."""
-    lo, hi = (float(v) for v in period)
-    if not 1.0 <= lo <= hi:
-        raise ValueError(f"data.albedo_line_period=[{lo}, {hi}]: give 1 <= low <= high pixels between a grille's lines")
-    return lo, hi
+    return check_range(period, "albedo_line_period", "pixels between a grille's lines", 1)
 
 
 def _grille(g: torch.Generator, size: int, period_range: tuple[float, float] = LINE_PERIOD) -> Tensor:

@@ -174,11 +174,11 @@ class NRIQADataModule(L.LightningDataModule):
         self.albedo_p = check_albedo_p(albedo_p)
         self.albedo_pass = bool(albedo_pass)
         self.albedo_lines = check_albedo_lines(albedo_lines)
-        albedo_line_period = [float(v) for v in albedo_line_period]  # a plain list in the checkpoint
         self.albedo_line_period = check_line_period(albedo_line_period)
+        albedo_line_period = list(self.albedo_line_period)  # a plain list in the checkpoint
         self.albedo_min_spp = check_min_spp(albedo_min_spp)
-        pixel_filter_sigma = [float(v) for v in pixel_filter_sigma]  # a plain list in the checkpoint
         self.pixel_filter_p, self.pixel_filter_sigma = check_pixel_filter(pixel_filter_p, pixel_filter_sigma)
+        pixel_filter_sigma = list(self.pixel_filter_sigma)  # a plain list in the checkpoint
         self.converged_p = check_converged_p(converged_p, self.twins)
         self.cutmix_p = check_cutmix_p(cutmix_p, ladder_pairs)
         self.coarse_p = check_coarse_p(coarse_p, patch_size)

@@ -1,4 +1,5 @@
-"""Checks of the ``data.*`` training options: a share (a probability) and a whole number with a lower bound.
+"""Checks of the ``data.*`` training options: a share (a probability), a whole number with a lower bound, and a
+range ``[low, high]`` of two numbers within bounds.
 
 A checked data option is checked twice, where :class:`nriqa.data.datamodule.NRIQADataModule` reads it (at config
 time, before anything is loaded) and where :class:`nriqa.data.patches.TrainPatches` takes it (for the class
@@ -13,13 +14,15 @@ was given and what to give: a ``ValueError`` that the command-line tools print a
     Traceback (most recent call last):
     ...
     ValueError: data.ladder_span=many: give a whole number of doublings >= 1
+    >>> check_range([0.3, 0.8], "pixel_filter_sigma", "pixels", 0, 4, low_open=True)
+    (0.3, 0.8)
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["check_share", "check_whole"]
+__all__ = ["check_range", "check_share", "check_whole"]
 
 
 def _number(value) -> float:
@@ -47,3 +50,19 @@ def check_whole(value, name: str, low: int, unit: str, note: str = "") -> int:
     if not (number.is_integer() and number >= low):
         raise ValueError(f"data.{name}={value}: give a whole number of {unit} >= {low}{note}")
     return int(number)
+
+
+def check_range(
+    pair, name: str, unit: str, low: float, high: float = math.inf, low_open: bool = False
+) -> tuple[float, float]:
+    """``pair`` as ``(lo, hi)`` floats if it is two numbers with ``low <= lo <= hi <= high`` (``low < lo`` where
+    ``low_open``); else a one-line ``ValueError`` naming ``data.<name>``, the bounds and the ``unit``."""
+    values = [] if isinstance(pair, (str, bytes)) else pair
+    try:
+        lo, hi = (_number(v) for v in values)
+    except (TypeError, ValueError):  # not iterable, or not two values
+        lo = hi = math.nan
+    if not ((lo > low if low_open else lo >= low) and lo <= hi <= high):
+        bounds = f"{low} {'<' if low_open else '<='} low <= high" + ("" if math.isinf(high) else f" <= {high}")
+        raise ValueError(f"data.{name}={pair}: give [low, high] with {bounds} {unit}")
+    return lo, hi

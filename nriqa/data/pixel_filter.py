@@ -22,7 +22,7 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from nriqa.data.options import check_share
+from nriqa.data.options import check_range, check_share
 
 SIGMA_RANGE = (0.3, 0.8)  # standard deviations in pixels: Mitsuba's 0.5 inside, narrower and wider about it
 TRUNCATE = 4.0  # Mitsuba's gaussian filter ends at 4 standard deviations
@@ -96,7 +96,4 @@ def sample_pixel_filter(
 def check_pixel_filter(p: float, sigma_range) -> tuple[float, tuple[float, float]]:
     """``(p, (lo, hi))`` if ``p`` is a share and ``0 < lo <= hi <= 4``; else a one-line ``ValueError``."""
     p = check_share(p, "pixel_filter_p", "the pixel filter")
-    lo, hi = (float(v) for v in sigma_range)
-    if not 0.0 < lo <= hi <= 4.0:
-        raise ValueError(f"pixel_filter_sigma=[{lo}, {hi}]: give 0 < low <= high <= 4 pixels")
-    return p, (lo, hi)
+    return p, check_range(sigma_range, "pixel_filter_sigma", "pixels (the filter's standard deviation)", 0, 4, True)
