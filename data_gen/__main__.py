@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import sys
 import time
 from pathlib import Path
@@ -24,6 +25,35 @@ CONFIG_DIR = str(Path(__file__).resolve().parent / "configs")
 def fail(message: str) -> None:
     print(f"data_gen: error: {message}", file=sys.stderr)
     sys.exit(2)
+
+
+def whole(key: str, value) -> int:
+    """``value`` as an int where it is a whole number (not a boolean); else fail with one line naming ``key``."""
+    try:
+        number = math.nan if isinstance(value, bool) else float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not number.is_integer():
+        fail(f"{key}={value}: give a whole number")
+    return int(number)
+
+
+def names(key: str, value) -> list[str]:
+    """``value`` as a list of names (one bare name is a list of one); else fail with one line naming ``key``."""
+    if isinstance(value, str):
+        return [value]
+    if not OmegaConf.is_list(value):
+        fail(f"{key}={value}: give a list of names, e.g. {key}=[a,b]")
+    return [str(v) for v in value]
+
+
+def resolution(value) -> tuple[int, int] | None:
+    """``resolution=[width, height]`` as two ints, or ``None`` (each scene's own); else one line."""
+    if value is None:
+        return None
+    if not OmegaConf.is_list(value) or len(value) != 2:
+        fail(f"resolution={value}: give [width, height], each >= 8")
+    return whole("resolution", value[0]), whole("resolution", value[1])
 
 
 def check_writable(out: Path) -> None:
@@ -69,20 +99,20 @@ def main(cfg: DictConfig) -> None:
     out = Path(cfg.out).expanduser().resolve()
     try:
         jobs = plan_dataset(
-            scenes=list(cfg.scenes),
-            variants=int(cfg.variants),
-            first_variant=int(cfg.first_variant),
-            seed=int(cfg.seed),
-            resolution=None if cfg.resolution is None else tuple(cfg.resolution),
-            ladder_top=cfg.ladder_top,
-            reference_factor=int(cfg.reference_factor),
-            algorithms=None if cfg.algorithms is None else list(cfg.algorithms),
+            scenes=names("scenes", cfg.scenes),
+            variants=whole("variants", cfg.variants),
+            first_variant=whole("first_variant", cfg.first_variant),
+            seed=whole("seed", cfg.seed),
+            resolution=resolution(cfg.resolution),
+            ladder_top=None if cfg.ladder_top is None else whole("ladder_top", cfg.ladder_top),
+            reference_factor=whole("reference_factor", cfg.reference_factor),
+            algorithms=None if cfg.algorithms is None else names("algorithms", cfg.algorithms),
             pixel_filter=str(cfg.pixel_filter),
             zoom=cfg.zoom,
         )
     except PlanError as exc:
         fail(str(exc))
-    if int(cfg.jobs) < 1:
+    if whole("jobs", cfg.jobs) < 1:
         fail(f"jobs={cfg.jobs}: need at least 1 worker")
     if cfg.executor.name not in EXECUTORS:
         fail(f"executor.name={cfg.executor.name}: choose one of {', '.join(EXECUTORS)} (executor=local|dask)")

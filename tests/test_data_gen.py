@@ -118,6 +118,15 @@ def test_ladder():
         ("ladder_top=12", "not a power of two"),
         ("reference_factor=4", ">= 16x"),
         ("first_variant=1", "first_variant=1 with variants=1"),
+        # the wrong type of value: one line naming the key, not a traceback
+        ("resolution=5", "resolution=5: give [width, height], each >= 8"),
+        ("resolution=[64,wide]", "resolution=wide: give a whole number"),
+        ("ladder_top=abc", "ladder_top=abc: give a whole number"),
+        ("variants=2.5", "variants=2.5: give a whole number"),
+        ("seed=true", "seed=True: give a whole number"),
+        ("scenes=5", "scenes=5: give a list of names"),
+        ("jobs=many", "jobs=many: give a whole number"),
+        ("zoom=abc", "zoom=abc: give a whole number >= 1"),
     ],
 )
 def test_cli_bad_configuration_is_one_line(tmp_path, override, message):
@@ -512,3 +521,13 @@ def test_loop_scene_is_the_reference_setup_at_any_resolution():
     assert scene["integrator"]["max_depth"] == get_scene("medium").max_depth
     assert scene["integrator"]["type"] == "volpath"  # the fog scene's reference integrator
     assert loop_scene("medium", (24, 16), spp=8) == scene  # the same variant every time
+
+
+def test_one_bare_scene_name_is_a_list_of_one():
+    from omegaconf import OmegaConf
+
+    from data_gen.__main__ import names, resolution
+
+    assert names("scenes", "cornell") == ["cornell"]
+    assert names("scenes", OmegaConf.create({"s": ["cornell", "door"]}).s) == ["cornell", "door"]
+    assert resolution(OmegaConf.create({"r": [64, "32"]}).r) == (64, 32) and resolution(None) is None
