@@ -127,6 +127,27 @@ def test_unknown_scene_is_a_one_line_error(synthetic_dataset, tmp_path):
     assert "alpha, beta, gamma" in message and "\n" not in message
 
 
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ("seed=abc", "seed=abc: give a whole number >= 0"),
+        (
+            "schedule.map.epochs=abc",
+            "trainer.max_epochs=abc: give a whole number >= 1 (schedule.<model>.epochs sets it)",
+        ),
+        ("schedule.map.epochs=0", "trainer.max_epochs=0: give a whole number >= 1"),
+        ("data.patch_size=2.5", "data.patch_size=2.5: give a whole number of pixels >= 1"),
+        ("data.batch_size=abc", "data.batch_size=abc: give a whole number of patches >= 1"),
+        ("data.num_workers=-1", "data.num_workers=-1: give a whole number of worker processes >= 0"),
+    ],
+)
+def test_a_count_of_the_wrong_type_is_one_line_naming_its_key(synthetic_dataset, tmp_path, override, message):
+    cfg = compose_cfg(tmp_path, synthetic_dataset, "experiment=unet_fast", "data.val_scene=beta", override)
+    with pytest.raises(Exception) as info:  # the data module's ValueError comes wrapped by Hydra's instantiate
+        train(cfg)
+    assert user_error(info.value).startswith(message) and "\n" not in user_error(info.value)
+
+
 def test_missing_dataset_exits_with_one_line(tmp_path):
     script = load_script("train.py")
     cfg = compose_cfg(tmp_path, tmp_path / "none")

@@ -16,6 +16,7 @@ from nriqa.data.converged import check_converged_p
 from nriqa.data.cutmix import check_cutmix_p
 from nriqa.data.anchors import Anchors
 from nriqa.data.ladders import check_span
+from nriqa.data.options import check_whole
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
@@ -155,6 +156,12 @@ class NRIQADataModule(L.LightningDataModule):
     ) -> None:
         super().__init__()
         check_target(target)
+        # whole numbers before anything uses them (and as ints in the checkpoint's hyperparameters)
+        patch_size = check_whole(patch_size, "patch_size", 1, "pixels")
+        batch_size = check_whole(batch_size, "batch_size", 1, "patches")
+        batches_per_epoch = check_whole(batches_per_epoch, "batches_per_epoch", 1, "batches")
+        val_patches = check_whole(val_patches, "val_patches", 1, "patches")
+        num_workers = check_whole(num_workers, "num_workers", 0, "worker processes")
         if device is not None and (num_workers or pin_memory):
             raise ValueError(
                 f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"

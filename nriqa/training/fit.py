@@ -95,6 +95,19 @@ def exit_on_user_error(fn, *args):
         sys.exit(f"error: {message}")
 
 
+def check_count(cfg: DictConfig, key: str, low: int, note: str = "") -> int:
+    """The value at the dotted ``key`` of ``cfg`` as an int if it is a whole number >= ``low``; else a one-line
+    ``ValueError`` naming the key, what was given and ``note`` (e.g. the option that sets it)."""
+    value = OmegaConf.select(cfg, key)
+    try:
+        number = float("nan") if isinstance(value, bool) else float(value)
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not (number.is_integer() and number >= low):
+        raise ValueError(f"{key}={value}: give a whole number >= {low}{note}")
+    return int(number)
+
+
 def _instantiate_group(cfg: DictConfig | None) -> list:
     """Instantiate every ``_target_`` entry of a callbacks/logger group (null or empty -> [])."""
     return [hydra.utils.instantiate(c) for c in (cfg or {}).values() if c is not None and "_target_" in c]
@@ -139,7 +152,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
             last whole epoch, and calling again with the same ``cfg`` (``ckpt_path`` set to it) resumes.
     """
     if cfg.get("seed") is not None:
-        L.seed_everything(cfg.seed, workers=True)
+        L.seed_everything(check_count(cfg, "seed", 0), workers=True)
+    max_epochs = check_count(cfg, "trainer.max_epochs", 1, " (schedule.<model>.epochs sets it)")
     if cfg.data.get("val_scene") is None:
         _fit_without_val(cfg)
 
@@ -147,7 +161,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     tail = check_tail(
         cfg.get("freeze_bn_from"),
         cfg.get("freeze_bn_batches", 500),
-        int(cfg.trainer.max_epochs),
+        max_epochs,
         bool(cfg.get("freeze_bn")),
         cfg.get("bn_refresh"),
     )

@@ -43,6 +43,7 @@ from nriqa.data.images import PairCache
 from nriqa.data.patches import EpochSampler, TrainPatches
 from nriqa.io.atomic import atomic_path
 from nriqa.models import create_model
+from nriqa.training.fit import check_count
 from nriqa.training.last_checkpoint import LAST_NAME
 
 STATE_NAME = "stacked_state.pt"
@@ -245,10 +246,10 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
     check_supported(cfg)
     out_dir = Path(out_dir)
     device = _device(cfg)
-    max_epochs = int(cfg.trainer.max_epochs)
+    max_epochs = check_count(cfg, "trainer.max_epochs", 1, " (schedule.<model>.epochs sets it)")
     max_seconds = parse_max_time(cfg.trainer.get("max_time"))
     if cfg.get("seed") is not None:
-        L.seed_everything(cfg.seed, workers=True)
+        L.seed_everything(check_count(cfg, "seed", 0), workers=True)
     # As nriqa.training.fit.train: the data first (a bad path fails before anything is built), then the network,
     # so each fold starts from the weights its own run would draw.
     modules = _fold_datamodules(cfg, scenes)
