@@ -14,6 +14,7 @@ from omegaconf import DictConfig, OmegaConf
 from data_gen.executors import EXECUTORS, ExecutorError, local_threads, log_progress, render_dask, run_local
 from data_gen.plan import Job, PlanError, plan_dataset
 from data_gen.render import load_record
+from nriqa.data.options import check_names
 from nriqa.io.atomic import sweep_partials
 from nriqa.io.manifest import write_manifest
 from nriqa.render.backend import select_backend
@@ -27,6 +28,14 @@ def fail(message: str) -> None:
     sys.exit(2)
 
 
+def names(key: str, value) -> list[str] | None:
+    """``value`` as a list of names (one bare name is a list of one); else fail with one line naming ``key``."""
+    try:
+        return check_names(value, key)
+    except ValueError as exc:
+        fail(str(exc))
+
+
 def whole(key: str, value) -> int:
     """``value`` as an int where it is a whole number (not a boolean); else fail with one line naming ``key``."""
     try:
@@ -36,15 +45,6 @@ def whole(key: str, value) -> int:
     if not number.is_integer():
         fail(f"{key}={value}: give a whole number")
     return int(number)
-
-
-def names(key: str, value) -> list[str]:
-    """``value`` as a list of names (one bare name is a list of one); else fail with one line naming ``key``."""
-    if isinstance(value, str):
-        return [value]
-    if not OmegaConf.is_list(value):
-        fail(f"{key}={value}: give a list of names, e.g. {key}=[a,b]")
-    return [str(v) for v in value]
 
 
 def resolution(value) -> tuple[int, int] | None:

@@ -123,6 +123,12 @@ def test_crossval_folds_stay_within_data_scenes(synthetic_dataset, tmp_path):
         held_back = compose("crossval", overrides=[*overrides, "data.scenes=[alpha,gamma]"])
         everything = compose("crossval", overrides=overrides)
     assert fold_scenes(held_back) == ["alpha", "gamma"] and fold_scenes(everything) == ["alpha", "beta", "gamma"]
+    with initialize_config_dir(str(CONFIG_DIR), version_base="1.3"):
+        one = compose("crossval", overrides=[*overrides, "crossval.scenes=beta"])
+        number = compose("crossval", overrides=[*overrides, "crossval.scenes=5"])
+    assert fold_scenes(one) == ["beta"]  # one bare name: a list of one
+    with pytest.raises(ValueError, match=r"^crossval.scenes=5: give a list of names, e.g. crossval.scenes=\[a,b\]$"):
+        fold_scenes(number)
 
 
 def test_stability_table(synthetic_dataset, tmp_path):

@@ -5,7 +5,7 @@ import math
 import pytest
 
 from nriqa.data.datamodule import NRIQADataModule
-from nriqa.data.options import check_range, check_share, check_whole
+from nriqa.data.options import check_names, check_range, check_share, check_whole
 
 
 @pytest.mark.parametrize("bad", [-1, 2.5, "many", math.nan, math.inf, True, None, [1]])
@@ -61,3 +61,12 @@ def test_the_data_module_names_a_bad_line_period_or_filter_range(bad, synthetic_
         NRIQADataModule(synthetic_dataset, val_scene="beta", albedo_line_period=bad)
     with pytest.raises(ValueError, match=r"^data.pixel_filter_sigma=.*: give \[low, high\]"):
         NRIQADataModule(synthetic_dataset, val_scene="beta", pixel_filter_sigma=bad)
+
+
+def test_a_list_of_names_is_a_list_a_bare_name_or_none():
+    assert check_names(["a", "b"], "data.scenes") == ["a", "b"] and check_names(("a",), "data.scenes") == ["a"]
+    assert check_names("cornell", "data.scenes") == ["cornell"] and check_names(None, "data.scenes") is None
+    assert check_names([], "data.scenes") == []
+    for bad in (5, 2.5, {"a": 1}, True):
+        with pytest.raises(ValueError, match=r"^data.scenes=.*: give a list of names, e.g. data.scenes=\[a,b\]$"):
+            check_names(bad, "data.scenes")

@@ -16,7 +16,7 @@ from nriqa.data.converged import check_converged_p
 from nriqa.data.cutmix import check_cutmix_p
 from nriqa.data.anchors import Anchors
 from nriqa.data.ladders import check_span
-from nriqa.data.options import check_whole
+from nriqa.data.options import check_names, check_whole
 from nriqa.data.pixel_filter import SIGMA_RANGE, check_pixel_filter
 from nriqa.data.folds import only_scenes, split_by_scene
 from nriqa.data.images import ImagePair, load_pairs, pairs_to
@@ -173,8 +173,8 @@ class NRIQADataModule(L.LightningDataModule):
         # plain str / list before saving: a checkpoint must load with weights_only=True (no ListConfig)
         data_dir = str(data_dir) if isinstance(data_dir, (str, os.PathLike)) else [str(d) for d in data_dir]
         display = None if display is None else {k: float(v) for k, v in dict(display).items()}
-        scenes = None if scenes is None else [str(s) for s in scenes]
-        anchor_scenes = [str(s) for s in anchor_scenes or ()]
+        scenes = check_names(scenes, "data.scenes")
+        anchor_scenes = check_names(anchor_scenes, "data.anchor_scenes") or []
         anchor_data = [str(d) for d in anchor_data or ()]
         self.display = None if display is None else display_mix(display)
         self.twins = bool(twins)

@@ -1,5 +1,6 @@
-"""Checks of the ``data.*`` training options: a share (a probability), a whole number with a lower bound, and a
-range ``[low, high]`` of two numbers within bounds.
+"""Checks of the ``data.*`` training options: a share (a probability), a whole number with a lower bound, a
+range ``[low, high]`` of two numbers within bounds, and a list of names (scene families; also for the other
+commands' lists of names, ``crossval.scenes`` and ``nriqa-data scenes=``).
 
 A checked data option is checked twice, where :class:`nriqa.data.datamodule.NRIQADataModule` reads it (at config
 time, before anything is loaded) and where :class:`nriqa.data.patches.TrainPatches` takes it (for the class
@@ -21,8 +22,9 @@ was given and what to give: a ``ValueError`` that the command-line tools print a
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
-__all__ = ["check_range", "check_share", "check_whole"]
+__all__ = ["check_names", "check_range", "check_share", "check_whole"]
 
 
 def _number(value) -> float:
@@ -66,3 +68,15 @@ def check_range(
         bounds = f"{low} {'<' if low_open else '<='} low <= high" + ("" if math.isinf(high) else f" <= {high}")
         raise ValueError(f"data.{name}={pair}: give [low, high] with {bounds} {unit}")
     return lo, hi
+
+
+def check_names(value, key: str) -> list[str] | None:
+    """``value`` as a list of names: ``None`` stays ``None`` (all), one bare name is a list of one; anything else
+    (a number, a mapping) is a one-line ``ValueError`` naming the full ``key`` (e.g. ``crossval.scenes``)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, Sequence):  # a list, a tuple or Hydra's ListConfig
+        return [str(v) for v in value]
+    raise ValueError(f"{key}={value}: give a list of names, e.g. {key}=[a,b]")

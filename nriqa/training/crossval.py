@@ -27,12 +27,13 @@ from omegaconf import DictConfig, open_dict
 
 from nriqa.core.correlation import kendall_tau, pcc, srocc
 from nriqa.data.folds import FoldError, noisy_records, only_scenes
+from nriqa.data.options import check_names
 from nriqa.eval.fold_eval import image_level, patch_correlations
 from nriqa.io.atomic import write_text_atomic
 from nriqa.io.manifest import read_datasets, scenes_of
 from nriqa.io.tables import markdown_table, mean_std_row, write_csv
 from nriqa.training.checkpoint import load_net_from_checkpoint
-from nriqa.training.fit import train
+from nriqa.training.fit import check_count, train
 
 RESULT_NAME = "result.json"
 _STATS = ("pcc", "srocc", "tau")
@@ -57,9 +58,9 @@ def fold_scenes(cfg: DictConfig) -> list[str]:
             f"init_from={cfg.init_from}: leave-one-scene-out must start every fold from random weights (trained "
             "weights may have learnt the held-out scene); drop init_from, or fine-tune with nriqa-train"
         )
-    scenes = cfg.data.get("scenes")
-    available = scenes_of(noisy_records(only_scenes(read_datasets(cfg.data.data_dir), scenes and list(scenes))))
-    wanted = list(cfg.crossval.scenes) if cfg.crossval.get("scenes") else available
+    scenes = check_names(cfg.data.get("scenes"), "data.scenes")
+    available = scenes_of(noisy_records(only_scenes(read_datasets(cfg.data.data_dir), scenes)))
+    wanted = check_names(cfg.crossval.get("scenes"), "crossval.scenes") or available
     unknown = [s for s in wanted if s not in available]
     if unknown:
         raise FoldError(f"unknown scenes {unknown} in crossval.scenes; the dataset has: {', '.join(available)}")
@@ -90,7 +91,7 @@ def fold_result(cfg: DictConfig, scene: str, fold_dir: Path, dm, ckpt: str, run:
     ``metrics``: the last logged ones.
     """
     net = load_net_from_checkpoint(ckpt)
-    n = cfg.crossval.get("eval_patches") or dm.val_patches
+    n = dm.val_patches if cfg.crossval.get("eval_patches") is None else check_count(cfg, "crossval.eval_patches", 1)
     train_stats = patch_correlations(net, dm.eval_dataloader(dm.train_eval_set(n)))
     val_stats = patch_correlations(net, dm.eval_dataloader(dm.val_set))
     rows, image_stats = image_level(net, dm.val_pairs, dm.target, dm.patch_size)
