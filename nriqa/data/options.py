@@ -24,11 +24,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-__all__ = ["check_names", "check_range", "check_share", "check_whole"]
+__all__ = ["as_number", "check_names", "check_range", "check_share", "check_whole"]
 
 
-def _number(value) -> float:
-    """``value`` as a float; NaN where it is a boolean or not a number at all (so every range test fails)."""
+def as_number(value) -> float:
+    """``value`` as a float; NaN where it is a boolean or not a number at all (so every range test fails). The other
+    commands' checks of a number read their values through it too."""
     if isinstance(value, bool):
         return math.nan
     try:
@@ -39,7 +40,7 @@ def _number(value) -> float:
 
 def check_share(p, name: str, what: str) -> float:
     """``p`` as a float in [0, 1]; else a one-line ``ValueError`` naming ``data.<name>`` and ``what`` 0 switches off."""
-    value = _number(p)
+    value = as_number(p)
     if not 0.0 <= value <= 1.0:
         raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
     return value
@@ -48,7 +49,7 @@ def check_share(p, name: str, what: str) -> float:
 def check_whole(value, name: str, low: int, unit: str, note: str = "") -> int:
     """``value`` as an int if it is a whole number >= ``low``; else a one-line ``ValueError`` naming ``data.<name>``,
     the ``unit`` it counts and ``note`` (e.g. what its lowest value means)."""
-    number = _number(value)
+    number = as_number(value)
     if not (number.is_integer() and number >= low):
         raise ValueError(f"data.{name}={value}: give a whole number of {unit} >= {low}{note}")
     return int(number)
@@ -61,7 +62,7 @@ def check_range(
     ``low_open``); else a one-line ``ValueError`` naming ``data.<name>``, the bounds and the ``unit``."""
     values = [] if isinstance(pair, (str, bytes)) else pair
     try:
-        lo, hi = (_number(v) for v in values)
+        lo, hi = (as_number(v) for v in values)
     except (TypeError, ValueError):  # not iterable, or not two values
         lo = hi = math.nan
     if not ((lo > low if low_open else lo >= low) and lo <= hi <= high):

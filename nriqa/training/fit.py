@@ -17,6 +17,7 @@ import lightning as L
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
+from nriqa.data.options import as_number
 from nriqa.losses.ladder import check_ladder_weight
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.frozen_tail import FrozenBatchNormTail, check_tail
@@ -99,10 +100,7 @@ def check_count(cfg: DictConfig, key: str, low: int, note: str = "") -> int:
     """The value at the dotted ``key`` of ``cfg`` as an int if it is a whole number >= ``low``; else a one-line
     ``ValueError`` naming the key, what was given and ``note`` (e.g. the option that sets it)."""
     value = OmegaConf.select(cfg, key)
-    try:
-        number = float("nan") if isinstance(value, bool) else float(value)
-    except (TypeError, ValueError):
-        number = float("nan")
+    number = as_number(value)
     if not (number.is_integer() and number >= low):
         raise ValueError(f"{key}={value}: give a whole number >= {low}{note}")
     return int(number)
