@@ -13,7 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 from data_gen.executors import EXECUTORS, ExecutorError, local_threads, log_progress, render_dask, run_local
 from data_gen.plan import Job, PlanError, plan_dataset
 from data_gen.render import load_record
-from nriqa.data.options import as_number, check_names
+from nriqa.data.options import check_names, check_whole
 from nriqa.io.atomic import sweep_partials
 from nriqa.io.manifest import write_manifest
 from nriqa.render.backend import select_backend
@@ -37,10 +37,10 @@ def names(key: str, value) -> list[str] | None:
 
 def whole(key: str, value) -> int:
     """``value`` as an int where it is a whole number (not a boolean); else fail with one line naming ``key``."""
-    number = as_number(value)
-    if not number.is_integer():
-        fail(f"{key}={value}: give a whole number")
-    return int(number)
+    try:
+        return check_whole(value, key)
+    except ValueError as exc:
+        fail(str(exc))
 
 
 def resolution(value) -> tuple[int, int] | None:

@@ -67,3 +67,18 @@ def test_bad_input_is_one_line_and_nothing_written(tmp_path, capsys):
     assert "\n" not in err and str(bad) in err and "need columns" in err
     assert not (tmp_path / "out").exists()
     assert loso_scores.main([str(tmp_path / "scores"), "--plan", "../x", "--out", str(tmp_path / "out")]) == 2
+
+
+def test_a_family_scored_on_fewer_sets_than_another_is_held_back_and_named(tmp_path, capsys):
+    scores, out = tmp_path / "scores", tmp_path / "out"
+    for s in ("setA", "setB"):
+        write_csv(scores / "lamps" / s / "images.csv", images("lamps", 70, [0.2, 0.5], [0.2, 0.5]), COLUMNS)
+    # textured's scoring on setB failed (no folder); blinds has a set of its own and lacks nothing
+    write_csv(scores / "textured" / "setA" / "images.csv", images("textured", 70, [0.2, 0.5], [0.3, 0.5]), COLUMNS)
+    write_csv(scores / "blinds" / "own" / "images.csv", images("blinds", 70, [0.2, 0.5], [0.2, 0.4]), COLUMNS)
+    assert loso_scores.main([str(scores), "--plan", "LL", "--out", str(out)]) == 1
+    printed = capsys.readouterr().out
+    assert "textured: not scored on setB (other families were); held back" in printed
+    assert sorted(p.name for p in (out / "LL").iterdir()) == ["blinds.csv", "lamps.csv"]
+    assert loso_scores.main([str(scores), "--plan", "LL", "--out", str(out), "--partial"]) == 0
+    assert len(read_csv(out / "LL" / "textured.csv", scorecard.NEED, "merged")) == 2

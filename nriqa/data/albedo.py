@@ -79,12 +79,12 @@ def grille(seed: int, size: int, period: tuple[float, float] = LINE_PERIOD) -> T
 
 def check_min_spp(spp) -> int:
     """``spp`` as an int if it is a whole number >= 0; else a one-line ``ValueError`` naming ``data.albedo_min_spp``."""
-    return check_whole(spp, "albedo_min_spp", 0, "samples per pixel", " (0: every image)")
+    return check_whole(spp, "data.albedo_min_spp", 0, "samples per pixel", " (0: every image)")
 
 
 def check_line_period(period) -> tuple[float, float]:
     """``(lo, hi)`` as floats if ``1 <= lo <= hi``; else a one-line ``ValueError`` naming ``data.albedo_line_period``."""
-    return check_range(period, "albedo_line_period", "pixels between a grille's lines", 1)
+    return check_range(period, "data.albedo_line_period", "pixels between a grille's lines", 1)
 
 
 def _grille(g: torch.Generator, size: int, period_range: tuple[float, float] = LINE_PERIOD) -> Tensor:
@@ -127,9 +127,9 @@ def sample_albedo(generator: torch.Generator, p: float) -> int | None:
 
 def check_albedo_p(p: float) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.albedo_p``."""
-    return check_share(p, "albedo_p", "the albedo textures")
+    return check_share(p, "data.albedo_p", "the albedo textures")
 
 
 def check_albedo_lines(p: float) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.albedo_lines``."""
-    return check_share(p, "albedo_lines", "the grilles")
+    return check_share(p, "data.albedo_lines", "the grilles")

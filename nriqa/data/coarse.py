@@ -24,7 +24,7 @@ from nriqa.data.cutmix import Box
 def check_coarse_p(p: float, patch_size: int) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.coarse_p`` (also where ``p`` > 0 and the
     patch side is odd or under 4: its 2 x 2 blocks would not tile it)."""
-    p = check_share(p, "coarse_p", "coarse pixels")
+    p = check_share(p, "data.coarse_p", "coarse pixels")
     if p and (patch_size % 2 or patch_size < 4):
         raise ValueError(f"data.coarse_p needs an even data.patch_size of at least 4, got {patch_size}")
     return p

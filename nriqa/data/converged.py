@@ -17,7 +17,7 @@ from nriqa.data.options import check_share
 def check_converged_p(p: float, twins: bool = False) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.converged_p`` (also where ``p`` > 0 for
     a two-buffer model: a reference is no independent twin of itself)."""
-    p = check_share(p, "converged_p", "it")
+    p = check_share(p, "data.converged_p", "it")
     if p and twins:
         raise ValueError("data.converged_p needs a single-image model: a reference is no independent twin of itself")
     return p

@@ -32,7 +32,7 @@ class Box:
 def check_cutmix_p(p: float, ladder_pairs: bool = False) -> float:
     """``p`` as a float in [0, 1], or a one-line ``ValueError`` naming ``data.cutmix_p`` (also where ``p`` > 0 with
     ladder pairs: an odd item is its even item's cut on another rung, which a partner's rectangle would not follow)."""
-    p = check_share(p, "cutmix_p", "pasting")
+    p = check_share(p, "data.cutmix_p", "pasting")
     if p and ladder_pairs:
         raise ValueError("data.cutmix_p and ladder pairs (ladder_weight > 0) do not go together; set one of them to 0")
     return p

@@ -157,11 +157,11 @@ class NRIQADataModule(L.LightningDataModule):
         super().__init__()
         check_target(target)
         # whole numbers before anything uses them (and as ints in the checkpoint's hyperparameters)
-        patch_size = check_whole(patch_size, "patch_size", 1, "pixels")
-        batch_size = check_whole(batch_size, "batch_size", 1, "patches")
-        batches_per_epoch = check_whole(batches_per_epoch, "batches_per_epoch", 1, "batches")
-        val_patches = check_whole(val_patches, "val_patches", 1, "patches")
-        num_workers = check_whole(num_workers, "num_workers", 0, "worker processes")
+        patch_size = check_whole(patch_size, "data.patch_size", 1, "pixels")
+        batch_size = check_whole(batch_size, "data.batch_size", 1, "patches")
+        batches_per_epoch = check_whole(batches_per_epoch, "data.batches_per_epoch", 1, "batches")
+        val_patches = check_whole(val_patches, "data.val_patches", 1, "patches")
+        num_workers = check_whole(num_workers, "data.num_workers", 0, "worker processes")
         if device is not None and (num_workers or pin_memory):
             raise ValueError(
                 f"data.device={device} makes patches in the training process; set num_workers=0 and pin_memory=false"

@@ -38,7 +38,7 @@ def ladder_key(record: Record) -> tuple:
 
 def check_span(span: int) -> int:
     """``span`` as an int if it is a whole number >= 1; else a one-line ``ValueError`` naming ``data.ladder_span``."""
-    return check_whole(span, "ladder_span", 1, "doublings")
+    return check_whole(span, "data.ladder_span", 1, "doublings")
 
 
 def ladder_partners(records: Sequence[Record], span: int = 2) -> list[list[int]]:

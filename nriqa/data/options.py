@@ -6,16 +6,18 @@ A checked data option is checked twice, where :class:`nriqa.data.datamodule.NRIQ
 time, before anything is loaded) and where :class:`nriqa.data.patches.TrainPatches` takes it (for the class
 used alone). Both call these, so a bad value gets the same one line wherever it is caught, naming its key, what
 was given and what to give: a ``ValueError`` that the command-line tools print as one line and exit non-zero.
+Each check takes the option's full key (``data.cutmix_p``), so the training loop's counts (``trainer.max_epochs``,
+``seed``) and ``nriqa-data``'s whole numbers go through the same checks and read the same way.
 
-    >>> check_share(0.25, "cutmix_p", "pasting")
+    >>> check_share(0.25, "data.cutmix_p", "pasting")
     0.25
-    >>> check_whole(16.0, "albedo_min_spp", 0, "samples per pixel")
+    >>> check_whole(16.0, "data.albedo_min_spp", 0, "samples per pixel")
     16
-    >>> check_whole("many", "ladder_span", 1, "doublings")
+    >>> check_whole("many", "data.ladder_span", 1, "doublings")
     Traceback (most recent call last):
     ...
     ValueError: data.ladder_span=many: give a whole number of doublings >= 1
-    >>> check_range([0.3, 0.8], "pixel_filter_sigma", "pixels", 0, 4, low_open=True)
+    >>> check_range([0.3, 0.8], "data.pixel_filter_sigma", "pixels", 0, 4, low_open=True)
     (0.3, 0.8)
 """
 
@@ -38,28 +40,31 @@ def as_number(value) -> float:
         return math.nan
 
 
-def check_share(p, name: str, what: str) -> float:
-    """``p`` as a float in [0, 1]; else a one-line ``ValueError`` naming ``data.<name>`` and ``what`` 0 switches off."""
+def check_share(p, key: str, what: str) -> float:
+    """``p`` as a float in [0, 1]; else a one-line ``ValueError`` naming ``key`` and ``what`` 0 switches off."""
     value = as_number(p)
     if not 0.0 <= value <= 1.0:
-        raise ValueError(f"data.{name}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
+        raise ValueError(f"{key}={p} is not a probability; use a value in [0, 1] (0 switches {what} off)")
     return value
 
 
-def check_whole(value, name: str, low: int, unit: str, note: str = "") -> int:
-    """``value`` as an int if it is a whole number >= ``low``; else a one-line ``ValueError`` naming ``data.<name>``,
-    the ``unit`` it counts and ``note`` (e.g. what its lowest value means)."""
+def check_whole(value, key: str, low: int | None = None, unit: str = "", note: str = "") -> int:
+    """``value`` as an int if it is a whole number (>= ``low`` unless that is ``None``); else a one-line
+    ``ValueError`` naming ``key``, the ``unit`` it counts and ``note`` (e.g. what its lowest value means, or the
+    option that sets it)."""
     number = as_number(value)
-    if not (number.is_integer() and number >= low):
-        raise ValueError(f"data.{name}={value}: give a whole number of {unit} >= {low}{note}")
+    if not (number.is_integer() and (low is None or number >= low)):
+        counted = f" of {unit}" if unit else ""
+        bound = "" if low is None else f" >= {low}"
+        raise ValueError(f"{key}={value}: give a whole number{counted}{bound}{note}")
     return int(number)
 
 
 def check_range(
-    pair, name: str, unit: str, low: float, high: float = math.inf, low_open: bool = False
+    pair, key: str, unit: str, low: float, high: float = math.inf, low_open: bool = False
 ) -> tuple[float, float]:
     """``pair`` as ``(lo, hi)`` floats if it is two numbers with ``low <= lo <= hi <= high`` (``low < lo`` where
-    ``low_open``); else a one-line ``ValueError`` naming ``data.<name>``, the bounds and the ``unit``."""
+    ``low_open``); else a one-line ``ValueError`` naming ``key``, the bounds and the ``unit``."""
     values = [] if isinstance(pair, (str, bytes)) else pair
     try:
         lo, hi = (as_number(v) for v in values)
@@ -67,7 +72,7 @@ def check_range(
         lo = hi = math.nan
     if not ((lo > low if low_open else lo >= low) and lo <= hi <= high):
         bounds = f"{low} {'<' if low_open else '<='} low <= high" + ("" if math.isinf(high) else f" <= {high}")
-        raise ValueError(f"data.{name}={pair}: give [low, high] with {bounds} {unit}")
+        raise ValueError(f"{key}={pair}: give [low, high] with {bounds} {unit}")
     return lo, hi
 
 

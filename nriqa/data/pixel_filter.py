@@ -95,5 +95,5 @@ def sample_pixel_filter(
 
 def check_pixel_filter(p: float, sigma_range) -> tuple[float, tuple[float, float]]:
     """``(p, (lo, hi))`` if ``p`` is a share and ``0 < lo <= hi <= 4``; else a one-line ``ValueError``."""
-    p = check_share(p, "pixel_filter_p", "the pixel filter")
-    return p, check_range(sigma_range, "pixel_filter_sigma", "pixels (the filter's standard deviation)", 0, 4, True)
+    p = check_share(p, "data.pixel_filter_p", "the pixel filter")
+    return p, check_range(sigma_range, "data.pixel_filter_sigma", "pixels (the filter's standard deviation)", 0, 4, True)

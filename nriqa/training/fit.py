@@ -17,7 +17,7 @@ import lightning as L
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf, open_dict
 
-from nriqa.data.options import as_number
+from nriqa.data.options import check_whole
 from nriqa.losses.ladder import check_ladder_weight
 from nriqa.training.batchnorm import estimate_batchnorm, repeated
 from nriqa.training.frozen_tail import FrozenBatchNormTail, check_tail
@@ -97,13 +97,20 @@ def exit_on_user_error(fn, *args):
 
 
 def check_count(cfg: DictConfig, key: str, low: int, note: str = "") -> int:
-    """The value at the dotted ``key`` of ``cfg`` as an int if it is a whole number >= ``low``; else a one-line
-    ``ValueError`` naming the key, what was given and ``note`` (e.g. the option that sets it)."""
-    value = OmegaConf.select(cfg, key)
-    number = as_number(value)
-    if not (number.is_integer() and number >= low):
-        raise ValueError(f"{key}={value}: give a whole number >= {low}{note}")
-    return int(number)
+    """The value at the dotted ``key`` of ``cfg`` as an int if it is a whole number >= ``low``; else the one-line
+    ``ValueError`` of :func:`nriqa.data.options.check_whole` naming the key and ``note``."""
+    return check_whole(OmegaConf.select(cfg, key), key, low, note=note)
+
+
+def max_epochs(cfg: DictConfig) -> int:
+    """``trainer.max_epochs``, checked as a whole number >= 1 (the schedule sets it)."""
+    return check_count(cfg, "trainer.max_epochs", 1, " (schedule.<model>.epochs sets it)")
+
+
+def seed_run(cfg: DictConfig) -> None:
+    """Seed torch, numpy, Python and the loader workers from ``seed`` (a whole number >= 0) where it is set."""
+    if cfg.get("seed") is not None:
+        L.seed_everything(check_count(cfg, "seed", 0), workers=True)
 
 
 def _instantiate_group(cfg: DictConfig | None) -> list:
@@ -149,9 +156,8 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
         StoppedBySigterm: SIGTERM arrived during the fit (status 143 if not caught); ``last.ckpt`` holds the
             last whole epoch, and calling again with the same ``cfg`` (``ckpt_path`` set to it) resumes.
     """
-    if cfg.get("seed") is not None:
-        L.seed_everything(check_count(cfg, "seed", 0), workers=True)
-    max_epochs = check_count(cfg, "trainer.max_epochs", 1, " (schedule.<model>.epochs sets it)")
+    seed_run(cfg)
+    epochs = max_epochs(cfg)
     if cfg.data.get("val_scene") is None:
         _fit_without_val(cfg)
 
@@ -159,7 +165,7 @@ def train(cfg: DictConfig) -> tuple[dict[str, float], dict]:
     tail = check_tail(
         cfg.get("freeze_bn_from"),
         cfg.get("freeze_bn_batches", 500),
-        max_epochs,
+        epochs,
         bool(cfg.get("freeze_bn")),
         cfg.get("bn_refresh"),
     )

@@ -31,7 +31,6 @@ import time
 from pathlib import Path
 
 import hydra
-import lightning as L
 import torch
 from omegaconf import DictConfig, OmegaConf
 from torch import Tensor, nn
@@ -43,7 +42,7 @@ from nriqa.data.images import PairCache
 from nriqa.data.patches import EpochSampler, TrainPatches
 from nriqa.io.atomic import atomic_path
 from nriqa.models import create_model
-from nriqa.training.fit import check_count
+from nriqa.training.fit import max_epochs, seed_run
 from nriqa.training.last_checkpoint import LAST_NAME
 
 STATE_NAME = "stacked_state.pt"
@@ -246,10 +245,9 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
     check_supported(cfg)
     out_dir = Path(out_dir)
     device = _device(cfg)
-    max_epochs = check_count(cfg, "trainer.max_epochs", 1, " (schedule.<model>.epochs sets it)")
+    epochs = max_epochs(cfg)
     max_seconds = parse_max_time(cfg.trainer.get("max_time"))
-    if cfg.get("seed") is not None:
-        L.seed_everything(check_count(cfg, "seed", 0), workers=True)
+    seed_run(cfg)
     # As nriqa.training.fit.train: the data first (a bad path fails before anything is built), then the network,
     # so each fold starts from the weights its own run would draw.
     modules = _fold_datamodules(cfg, scenes)
@@ -290,7 +288,7 @@ def train_stacked(cfg: DictConfig, scenes: list[str], out_dir: str | Path) -> di
         persistent_workers=bool(data.get("num_workers")),
     )
     out_of_time = max_seconds is not None and seconds >= max_seconds
-    while epoch < max_epochs and not out_of_time and len(stopped) < len(scenes):
+    while epoch < epochs and not out_of_time and len(stopped) < len(scenes):
         sampler.set_epoch(epoch)
         started = time.perf_counter()
         sums, counts = torch.zeros(len(scenes), dtype=torch.float64), torch.zeros(len(scenes))
