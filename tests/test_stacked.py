@@ -234,6 +234,25 @@ def test_stacked_refuses_what_it_does_not_do(synthetic_dataset, tmp_path, extra,
     assert not (tmp_path / STATE_NAME).exists()
 
 
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (
+            "trainer.max_epochs=2.5",
+            "trainer.max_epochs=2.5: give a whole number >= 1 (schedule.<model>.epochs sets it)",
+        ),
+        ("seed=abc", "seed=abc: give a whole number >= 0"),
+    ],
+)
+def test_stacked_reads_its_counts_as_one_fold_does(synthetic_dataset, tmp_path, extra, message):
+    # the same check and line as nriqa.training.fit.train, before any data is loaded or anything written
+    cfg = _cfg(synthetic_dataset, tmp_path, "crossval.stacked=true", extra)
+    with pytest.raises(ValueError) as info:
+        stacked.train_stacked(cfg, ["alpha", "beta"], tmp_path)
+    assert str(info.value) == message
+    assert not (tmp_path / STATE_NAME).exists()
+
+
 def test_parse_max_time():
     assert parse_max_time(None) is None
     assert parse_max_time("00:00:07:00") == 420.0
